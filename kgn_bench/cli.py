@@ -1,0 +1,128 @@
+"""The ``kgn-bench`` command. Parses arguments and calls library functions; no logic of its own.
+
+Errors in arguments or inputs print one line ``kgn-bench: error: ...`` and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line and exit 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        sys.stderr.write(f"kgn-bench: error: {message}\n")
+        sys.exit(2)
+
+
+def _int_at_least(lo: int):
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"must be ≥ {lo}, got {v}")
+        return v
+
+    return parse
+
+
+def _fail(message: str) -> int:
+    sys.stderr.write(f"kgn-bench: error: {message}\n")
+    return 2
+
+
+def _cmd_data_generate(args) -> int:
+    from kgn_bench.data.format import DatasetError
+    from kgn_bench.data.generate import GenerateConfig, generate_dataset
+
+    config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed)
+    try:
+        stats = generate_dataset(config, args.out, workers=args.workers, overwrite=args.overwrite,
+                                 progress=not args.quiet)
+    except DatasetError as e:
+        return _fail(str(e))
+    done = config.scenes - stats.scenes
+    print(
+        f"{args.out}: {config.scenes} scenes x {config.views} views ({stats.scenes} generated now"
+        + (f", {done} already there" if done else "")
+        + f") in {stats.wall:.1f} s, {stats.views_per_second:.1f} views/s"
+    )
+    return 0
+
+
+def _cmd_data_show(args) -> int:
+    from kgn_bench.data.format import DatasetError
+    from kgn_bench.viz.draw import save_png, show_view
+
+    try:
+        image = show_view(args.dir, args.scene, args.view, box=args.box)
+    except (DatasetError, ValueError) as e:
+        return _fail(str(e))
+    save_png(args.out, image)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_perf_data(args) -> int:
+    from kgn_bench.perf import perf_data
+
+    print(perf_data(scenes=args.scenes, workers=args.workers, mode=args.mode))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="kgn-bench", description="KGNv2 grasp detection: dataset, training and closed-loop benchmark.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    data = sub.add_parser("data", help="the Primitive Shape dataset")
+    dsub = data.add_subparsers(dest="data_command", required=True, parser_class=_Parser)
+
+    gen = dsub.add_parser("generate", help="generate a PS dataset (resumes an interrupted run)")
+    gen.add_argument("--mode", choices=("single", "multi"), required=True,
+                     help="single: one random shape per scene; multi: one of each of the six shapes")
+    gen.add_argument("--scenes", type=_int_at_least(1), default=1000, help="number of scenes (default 1000)")
+    gen.add_argument("--views", type=_int_at_least(1), default=5, help="camera views per scene (default 5)")
+    gen.add_argument("--seed", type=_int_at_least(0), default=0, help="dataset seed (default 0)")
+    gen.add_argument("--out", type=Path, required=True, help="output folder")
+    gen.add_argument("--workers", type=_int_at_least(1), default=1, help="worker processes (default 1)")
+    gen.add_argument("--overwrite", action="store_true", help="replace a dataset with other settings in --out")
+    gen.add_argument("--quiet", action="store_true", help="no progress bar")
+    gen.set_defaults(func=_cmd_data_generate)
+
+    show = dsub.add_parser("show", help="draw a view's collision-free ground-truth grasps and its depth")
+    show.add_argument("dir", type=Path, help="dataset folder")
+    show.add_argument("--scene", type=_int_at_least(0), required=True)
+    show.add_argument("--view", type=_int_at_least(0), default=0)
+    show.add_argument("--box", choices=("width", "fixed"), default="width",
+                      help="keypoint box side: the grasp width (default) or the fixed 0.1 m training box")
+    show.add_argument("--out", type=Path, required=True, help="PNG to write")
+    show.set_defaults(func=_cmd_data_show)
+
+    perf = sub.add_parser("perf", help="speed measurements")
+    psub = perf.add_subparsers(dest="perf_command", required=True, parser_class=_Parser)
+    pdata = psub.add_parser("data", help="dataset generation views/s and its split")
+    pdata.add_argument("--scenes", type=_int_at_least(1), default=20)
+    pdata.add_argument("--workers", type=_int_at_least(1), default=2)
+    pdata.add_argument("--mode", choices=("single", "multi"), default="multi")
+    pdata.set_defaults(func=_cmd_perf_data)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        sys.stderr.write("kgn-bench: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""The Primitive Shape dataset: generation, file format and (later) training data."""

@@ -1,0 +1,284 @@
+"""The Primitive Shape (PS) dataset generator: scenes, settling, grasp labels, renders, files.
+
+Every random draw of scene ``i`` comes from ``numpy.random.default_rng([seed, mode_id, i])``, so any
+scene can be regenerated alone and the files are identical whatever the number of workers. A scene
+whose physics fails (an object leaves the table, the state diverges) is redrawn from the same stream.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+
+from kgn_bench.data.format import (
+    FORMAT_VERSION,
+    DatasetError,
+    ObjectAnnotation,
+    SceneAnnotation,
+    atomic_write_text,
+    scene_dir,
+    write_view,
+)
+from kgn_bench.grasp import GraspSet
+from kgn_bench.progress import Progress
+from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_class, shape_from_dims
+from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics
+from kgn_bench.sim.collision import label_scene
+from kgn_bench.sim.placement import PlacementConfig, place_objects, rectify_axisymmetric, settle
+from kgn_bench.sim.render import RGBD, SceneRenderer
+from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
+
+__all__ = [
+    "MODES",
+    "GenerateConfig",
+    "GeneratedScene",
+    "GenerationStats",
+    "generate_dataset",
+    "generate_scene",
+    "relabel_grasps",
+    "scene_from_annotation",
+]
+
+MODES = ("single", "multi")
+TEST_FRACTION = 0.2
+MAX_SCENE_ATTEMPTS = 5
+TIMING_KEYS = ("settle", "annotate", "render", "write")
+
+
+@dataclass(frozen=True)
+class GenerateConfig:
+    """What a dataset is made of. Fields other than ``workers`` define its content (the manifest)."""
+
+    mode: str = "multi"
+    scenes: int = 1000
+    views: int = 5
+    seed: int = 0
+    intrinsics: Intrinsics = REALSENSE
+    cameras: CameraSampler = field(default_factory=CameraSampler)
+    density: GraspDensity = TRAIN_DENSITY
+    placement: PlacementConfig = field(default_factory=PlacementConfig)
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if self.scenes < 1 or self.views < 1 or self.seed < 0:
+            raise ValueError("scenes and views must be ≥ 1 and seed ≥ 0")
+
+    def manifest(self) -> dict:
+        return {
+            "format_version": FORMAT_VERSION,
+            "generator": "kgn_bench.data.generate",
+            "mode": self.mode,
+            "scenes": self.scenes,
+            "views": self.views,
+            "seed": self.seed,
+            "intrinsics": self.intrinsics.to_dict(),
+            "camera_distance_m": list(self.cameras.distance_range),
+            "camera_elevation_deg": [float(np.rad2deg(a)) for a in self.cameras.elevation_range],
+            "grasp_density": {"translations": self.density.translations, "angles": self.density.angles},
+            "object_types": list(PRIMITIVES),
+            "test_fraction": TEST_FRACTION,
+        }
+
+    def rng(self, index: int) -> np.random.Generator:
+        return np.random.default_rng([self.seed, MODES.index(self.mode), index])
+
+    def split(self) -> tuple[list[int], list[int]]:
+        """Scene-wise (train, test) split: a seeded permutation, the first 20 % go to test."""
+        perm = np.random.default_rng([self.seed, MODES.index(self.mode), 2**31]).permutation(self.scenes)
+        n_test = round(TEST_FRACTION * self.scenes)
+        return sorted(perm[n_test:].tolist()), sorted(perm[:n_test].tolist())
+
+
+@dataclass
+class GeneratedScene:
+    annotation: SceneAnnotation
+    views: list[RGBD]
+    timings: dict[str, float]
+
+
+def _sample_objects(config: GenerateConfig, rng: np.random.Generator) -> list[SceneObject]:
+    names = list(PRIMITIVES)
+    if config.mode == "single":
+        chosen = [names[rng.integers(len(names))]]
+    else:
+        chosen = [names[k] for k in rng.permutation(len(names))]
+    return [SceneObject(shape_class(n).sample(rng), tuple(float(c) for c in rng.uniform(0.0, 1.0, 3))) for n in chosen]
+
+
+def generate_scene(config: GenerateConfig, index: int) -> GeneratedScene:
+    """Build, settle, annotate and render scene ``index`` (deterministic in ``config`` and ``index``)."""
+    rng = config.rng(index)
+    t0 = time.perf_counter()
+    for attempt in range(MAX_SCENE_ATTEMPTS):
+        objects = _sample_objects(config, rng)
+        scene = Scene(objects, config.intrinsics)
+        try:
+            place_objects(scene, rng, config.placement)
+            settle(scene, config.placement)
+        except PhysicsError:
+            if attempt == MAX_SCENE_ATTEMPTS - 1:
+                raise
+            continue
+        break
+    rectify_axisymmetric(scene)
+    t1 = time.perf_counter()
+    grasps = label_scene(scene, config.density)
+    t2 = time.perf_counter()
+    camera_poses = config.cameras.sample(rng, config.views)
+    with SceneRenderer(scene) as renderer:
+        views = [renderer.render(p) for p in camera_poses]
+    t3 = time.perf_counter()
+    annotation = SceneAnnotation(
+        index=index,
+        intrinsics=config.intrinsics,
+        camera_poses=camera_poses,
+        objects=[
+            ObjectAnnotation(o.shape.name, o.shape.dims(), scene.object_pose(i), o.color, o.shape.mass(), g)
+            for i, (o, g) in enumerate(zip(objects, grasps))
+        ],
+        density=config.density,
+    )
+    return GeneratedScene(annotation, views, {"settle": t1 - t0, "annotate": t2 - t1, "render": t3 - t2})
+
+
+def write_scene(root: Path, generated: GeneratedScene) -> float:
+    """Write a scene folder atomically (temporary folder, then rename); returns the seconds spent."""
+    t0 = time.perf_counter()
+    final = scene_dir(root, generated.annotation.index)
+    tmp = final.parent / f".tmp-{final.name}-{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    for v, rgbd in enumerate(generated.views):
+        write_view(tmp, v, rgbd)
+    (tmp / "scene.json").write_text(json.dumps(generated.annotation.to_json()))
+    if final.exists():
+        shutil.rmtree(final)
+    os.replace(tmp, final)
+    return time.perf_counter() - t0
+
+
+def scene_from_annotation(annotation: SceneAnnotation) -> Scene:
+    """Rebuild the simulator scene of an annotation with every object at its recorded pose."""
+    objects = [
+        SceneObject(shape_from_dims(o.type, o.dims), o.color, o.pose)
+        for o in annotation.objects
+    ]
+    scene = Scene(objects, annotation.intrinsics)
+    for i, o in enumerate(annotation.objects):
+        scene.set_object_pose(i, o.pose)
+    scene.forward()
+    return scene
+
+
+def relabel_grasps(annotation: SceneAnnotation, density: GraspDensity) -> list[GraspSet]:
+    """Grasp families of a stored scene regenerated at ``density`` (e.g. ``EVAL_DENSITY``, 10 / 30) and
+    collision-labelled exactly as at generation time."""
+    return label_scene(scene_from_annotation(annotation), density)
+
+
+# -- the dataset --------------------------------------------------------------------------------
+
+
+@dataclass
+class GenerationStats:
+    scenes: int
+    views: int
+    wall: float
+    timings: dict[str, float]
+
+    @property
+    def views_per_second(self) -> float:
+        return self.views / self.wall if self.wall > 0 else float("nan")
+
+
+def _generate_and_write(args: tuple[GenerateConfig, int, str]) -> dict[str, float]:
+    config, index, root = args
+    generated = generate_scene(config, index)
+    timings = dict(generated.timings)
+    timings["write"] = write_scene(Path(root), generated)
+    return timings
+
+
+def _worker_init() -> None:
+    # One software-rendering thread per worker process: the workers already fill the cores.
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+
+
+def prepare_output(config: GenerateConfig, root: Path, overwrite: bool) -> list[int]:
+    """Check or create the output folder; returns the scene indices still to generate.
+
+    A folder holding this very dataset (same manifest) is resumed; a non-empty folder holding anything
+    else is refused unless ``overwrite``, which removes only the dataset's own files.
+    """
+    root = Path(root)
+    manifest = config.manifest()
+    if root.exists() and not root.is_dir():
+        raise DatasetError(f"output {root} exists and is not a folder")
+    if root.is_dir() and any(root.iterdir()):
+        existing = None
+        if (root / "dataset.json").is_file():
+            try:
+                existing = json.loads((root / "dataset.json").read_text())
+            except json.JSONDecodeError:
+                existing = None
+        if overwrite:
+            for name in ("dataset.json", "train.txt", "test.txt"):
+                (root / name).unlink(missing_ok=True)
+            shutil.rmtree(root / "scenes", ignore_errors=True)
+        elif existing is None:
+            raise DatasetError(
+                f"output folder {root} is not empty and holds no dataset; use --overwrite or another folder"
+            )
+        elif existing != manifest:
+            diff = [k for k in manifest if existing.get(k) != manifest[k]]
+            raise DatasetError(
+                f"output folder {root} holds a dataset with other settings ({', '.join(diff)}); "
+                "use --overwrite or another folder"
+            )
+    (root / "scenes").mkdir(parents=True, exist_ok=True)
+    for stale in (root / "scenes").glob(".tmp-*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    if not (root / "dataset.json").is_file():
+        atomic_write_text(root / "dataset.json", json.dumps(manifest, indent=2) + "\n")
+    return [i for i in range(config.scenes) if not (scene_dir(root, i) / "scene.json").is_file()]
+
+
+def generate_dataset(config: GenerateConfig, root: Path, workers: int = 1, overwrite: bool = False,
+                     progress: bool = True) -> GenerationStats:
+    """Generate (or finish) the dataset in ``root`` with ``workers`` processes; writes the split last."""
+    if workers < 1:
+        raise ValueError("workers must be ≥ 1")
+    root = Path(root)
+    todo = prepare_output(config, root, overwrite)
+    totals = dict.fromkeys(TIMING_KEYS, 0.0)
+    bar = Progress(len(todo), f"data generate {config.mode}", unit="scenes", enabled=progress)
+    start = time.perf_counter()
+    jobs = [(config, i, str(root)) for i in todo]
+    if workers == 1 or len(todo) <= 1:
+        results = map(_generate_and_write, jobs)
+        for timings in results:
+            for k, v in timings.items():
+                totals[k] += v
+            bar.update()
+    else:
+        with ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
+                                 initializer=_worker_init) as pool:
+            for timings in pool.map(_generate_and_write, jobs, chunksize=1):
+                for k, v in timings.items():
+                    totals[k] += v
+                bar.update()
+    wall = time.perf_counter() - start
+    train, test = config.split()
+    atomic_write_text(root / "train.txt", "".join(f"{i}\n" for i in train))
+    atomic_write_text(root / "test.txt", "".join(f"{i}\n" for i in test))
+    return GenerationStats(scenes=len(todo), views=len(todo) * config.views, wall=wall, timings=totals)

@@ -1,0 +1,154 @@
+"""Rigid-body geometry: rotations, homogeneous poses, pinhole projection.
+
+Conventions (DESIGN §4): metres and radians; a pose ``T_a_b`` is a 4×4 homogeneous matrix that maps
+points expressed in frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``). Rotation matrices act on
+column vectors. Pixel coordinates follow OpenCV: pixel ``(u, v)`` has its centre at integer ``(u, v)``,
+``u`` grows to the right and ``v`` downwards.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "axis_align",
+    "backproject",
+    "invert_pose",
+    "make_pose",
+    "matrix_from_quat_wxyz",
+    "project",
+    "quat_wxyz_from_matrix",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "rotation_angle",
+    "transform_points",
+]
+
+
+def rot_x(angle: float) -> np.ndarray:
+    """Rotation by ``angle`` (rad) about +x."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(angle: float) -> np.ndarray:
+    """Rotation by ``angle`` (rad) about +y."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(angle: float | np.ndarray) -> np.ndarray:
+    """Rotation by ``angle`` (rad) about +z; an array of N angles gives an (N, 3, 3) stack."""
+    a = np.asarray(angle, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    out = np.zeros((*a.shape, 3, 3))
+    out[..., 0, 0], out[..., 0, 1] = c, -s
+    out[..., 1, 0], out[..., 1, 1] = s, c
+    out[..., 2, 2] = 1.0
+    return out
+
+
+def axis_align(spec: tuple[int, int, int]) -> np.ndarray:
+    """Signed axis permutation: column k of the result is ``sign(spec[k]) * e_{|spec[k]|}``.
+
+    ``axis_align((-3, 2, 1))`` is the frame whose x axis is −Z, y axis +Y and z axis +X of the parent.
+    Raises ``ValueError`` if the result is not a proper rotation.
+    """
+    R = np.zeros((3, 3))
+    for col, s in enumerate(spec):
+        if abs(s) not in (1, 2, 3):
+            raise ValueError(f"axis_align entries must be ±1, ±2 or ±3, got {spec}")
+        R[abs(s) - 1, col] = np.sign(s)
+    if not np.isclose(np.linalg.det(R), 1.0):
+        raise ValueError(f"axis_align{spec} is not a right-handed rotation")
+    return R
+
+
+def make_pose(R: np.ndarray | None = None, t: np.ndarray | None = None) -> np.ndarray:
+    """4×4 pose from a rotation (default identity) and a translation (default zero)."""
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    if t is not None:
+        T[:3, 3] = t
+    return T
+
+
+def invert_pose(T: np.ndarray) -> np.ndarray:
+    """Inverse of one pose (4, 4) or a stack (..., 4, 4): ``[Rᵀ, −Rᵀt]``."""
+    R = T[..., :3, :3]
+    t = T[..., :3, 3]
+    Rt = np.swapaxes(R, -1, -2)
+    out = np.zeros_like(T)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, t)
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply pose ``T`` (4, 4) to points (..., 3): ``R p + t``."""
+    return points @ T[:3, :3].T + T[:3, 3]
+
+
+def rotation_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Geodesic angle (rad) between rotations: ``arccos((tr(Raᵀ Rb) − 1) / 2)``, broadcast over stacks."""
+    tr = np.einsum("...ij,...ij->...", Ra, Rb)
+    return np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0))
+
+
+def project(points_cam: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Pinhole projection of camera-frame points (..., 3) (OpenCV frame, z forward) to pixels (..., 2).
+
+    ``u = fx·x/z + cx``, ``v = fy·y/z + cy``. Points with z ≤ 0 give non-finite or mirrored pixels;
+    callers that care must test ``z > 0`` themselves.
+    """
+    z = points_cam[..., 2:3]
+    uv1 = points_cam @ K.T
+    return uv1[..., :2] / z
+
+
+def backproject(depth: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Back-project a planar depth image (H, W) in metres to camera-frame points (H, W, 3).
+
+    ``x = (u − cx)·z/fx``, ``y = (v − cy)·z/fy``; pixels with depth 0 (no return) map to the origin.
+    """
+    h, w = depth.shape
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    z = depth.astype(np.float64)
+    x = (u - K[0, 2]) * z / K[0, 0]
+    y = (v - K[1, 2]) * z / K[1, 1]
+    return np.stack([x, y, z], axis=-1)
+
+
+def quat_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z), w ≥ 0, of a rotation matrix (Shepperd's method)."""
+    m = np.asarray(R, dtype=float)
+    tr = np.trace(m)
+    if tr > 0.0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        q = np.array([0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s])
+    else:
+        i = int(np.argmax(np.diag(m)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
+        q = np.empty(4)
+        q[0] = (m[k, j] - m[j, k]) / s
+        q[1 + i] = 0.25 * s
+        q[1 + j] = (m[j, i] + m[i, j]) / s
+        q[1 + k] = (m[k, i] + m[i, k]) / s
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0.0 else -q
+
+
+def matrix_from_quat_wxyz(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a quaternion (w, x, y, z); the quaternion is normalised first."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )

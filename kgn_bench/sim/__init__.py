@@ -1,0 +1,1 @@
+"""The simulated world: scene composition, camera, rendering, placement and collision labelling."""

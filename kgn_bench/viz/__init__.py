@@ -1,0 +1,1 @@
+"""Drawings and plots (PNG) and, later, rerun recordings."""

@@ -1,0 +1,42 @@
+import numpy as np
+import pytest
+
+from kgn_bench.geometry import invert_pose, project, transform_points
+from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics, convert_camera_frame, look_at, orbit_pose
+
+
+def test_convert_camera_frame_is_an_involution_and_flips_y_z():
+    T = look_at(np.array([0.3, -0.4, 0.7]), np.zeros(3))
+    np.testing.assert_allclose(convert_camera_frame(convert_camera_frame(T)), T)
+    mj = convert_camera_frame(T)
+    # MuJoCo looks along −z: its −z axis is OpenCV's +z (the optical axis); y flips
+    np.testing.assert_allclose(-mj[:3, 2], T[:3, 2])
+    np.testing.assert_allclose(-mj[:3, 1], T[:3, 1])
+    np.testing.assert_allclose(mj[:3, 0], T[:3, 0])
+
+
+@pytest.mark.parametrize("elev_deg", [30.0, 60.0, 89.0, 90.0])
+def test_orbit_pose_looks_at_origin_with_zero_roll(elev_deg):
+    T = orbit_pose(0.8, np.deg2rad(elev_deg), 1.1)
+    assert np.linalg.norm(T[:3, 3]) == pytest.approx(0.8)
+    np.testing.assert_allclose(T[:3, 2], -T[:3, 3] / 0.8, atol=1e-12)  # optical axis through the origin
+    assert abs(T[2, 0]) < 1e-12  # image x horizontal
+    assert T[2, 1] <= 1e-12  # image down points downwards in the world
+    uv = project(transform_points(invert_pose(T), np.zeros(3))[None], REALSENSE.K)[0]
+    np.testing.assert_allclose(uv, [REALSENSE.cx, REALSENSE.cy], atol=1e-9)
+    if elev_deg < 90:
+        np.testing.assert_allclose(T[:3, :3], look_at(T[:3, 3], np.zeros(3))[:3, :3], atol=1e-9)
+
+
+def test_camera_sampler_respects_ranges(rng):
+    poses = CameraSampler().sample(rng, 200)
+    d = np.linalg.norm(poses[:, :3, 3], axis=1)
+    elev = np.rad2deg(np.arcsin(poses[:, 2, 3] / d))
+    assert d.min() >= 0.6 and d.max() <= 1.0
+    assert elev.min() >= 30 - 1e-9 and elev.max() <= 90 + 1e-9
+
+
+def test_intrinsics_validation_and_dict():
+    assert Intrinsics.from_dict(REALSENSE.to_dict()) == REALSENSE
+    with pytest.raises(ValueError):
+        Intrinsics(0, 1, 0, 0, 10, 10)

@@ -1,0 +1,81 @@
+"""Collision labels checked against an independent test: surface samples of the neighbours' meshes."""
+
+import numpy as np
+import trimesh
+
+from kgn_bench.geometry import invert_pose, make_pose
+from kgn_bench.gripper import GRIPPER
+from kgn_bench.shapes import EVAL_DENSITY, TRAIN_DENSITY
+from kgn_bench.shapes.primitives import Cuboid, Cylinder, Sphere
+from kgn_bench.sim.collision import label_collisions, label_scene, proxy_hits_table
+from kgn_bench.sim.scene import Scene, SceneObject
+
+
+def _points_in_proxy(pose, width, points, shrink):
+    local = (points - pose[:3, 3]) @ pose[:3, :3]
+    local = local - GRIPPER.proxy_centre
+    half = GRIPPER.proxy_half_extents(width) - shrink
+    return np.all(np.abs(local) < half, axis=1)
+
+
+def _scene():
+    objects = [
+        SceneObject(Cuboid((0.06, 0.05, 0.08)), (1, 0, 0), make_pose(t=[0.0, 0.0, 0.04])),
+        SceneObject(Cylinder(0.04, 0.07), (0, 1, 0), make_pose(t=[0.11, 0.0, 0.035])),
+        SceneObject(Sphere(0.03), (0, 0, 1), make_pose(t=[-0.02, 0.09, 0.03])),
+    ]
+    return Scene(objects)
+
+
+def test_free_grasps_clear_table_and_neighbours_and_flags_are_real():
+    scene = _scene()
+    labels = label_scene(scene, EVAL_DENSITY)
+    samples = []
+    for obj in scene.objects:
+        pts, _ = trimesh.sample.sample_surface_even(obj.shape.mesh(), 6000, seed=0)
+        samples.append(pts @ obj.pose[:3, :3].T + obj.pose[:3, 3])
+    neighbour_hits = 0
+    for i, grasps in enumerate(labels):
+        others = np.concatenate([p for j, p in enumerate(samples) if j != i])
+        assert 0 < grasps.collides.sum() < len(grasps)
+        for T, w, c in zip(grasps.poses, grasps.widths, grasps.collides):
+            corners = GRIPPER.proxy_corners(T[None], np.array([w]))[0]
+            if not c:
+                assert corners[:, 2].min() >= 0.0
+                # 1.5 mm margin: collision pieces are polygonal, the mesh is smooth
+                assert not np.any(_points_in_proxy(T, w, others, shrink=1.5e-3))
+            elif corners[:, 2].min() >= 0.0:
+                neighbour_hits += 1
+                assert np.any(_points_in_proxy(T, w, others, shrink=-1.5e-3))
+    assert neighbour_hits > 10
+
+
+def test_bottom_grasps_of_an_upright_tube_hit_the_table():
+    tube = Cylinder(0.04, 0.07)
+    scene = Scene([SceneObject(tube, (1, 1, 1), make_pose(t=[0, 0, 0.035]))])
+    g = label_collisions(scene, 0, tube.grasps(TRAIN_DENSITY).transformed(scene.object_pose(0)))
+    bottom = g.poses[:, 2, 0] > 0.99  # approaching upwards
+    assert bottom.sum() == 11 and np.all(g.collides[bottom])
+    top = g.poses[:, 2, 0] < -0.99
+    assert not np.any(g.collides[top])  # the grasped tube itself is excluded
+
+
+def test_table_test_is_strict_at_the_surface():
+    # approach −z: the box lies above the fingertips; it touches z = 0 only at its front face
+    T = make_pose(np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]]), [0, 0, 0.0])
+    assert T[2, 0] == -1
+    assert not proxy_hits_table(T[None], np.array([0.05]))[0]
+    T[2, 3] = -1e-4
+    assert proxy_hits_table(T[None], np.array([0.05]))[0]
+
+
+def test_proxy_state_is_restored_after_labelling():
+    scene = _scene()
+    before = (scene.model.geom_contype.copy(), scene.model.geom_conaffinity.copy())
+    label_scene(scene, TRAIN_DENSITY)
+    np.testing.assert_array_equal(scene.model.geom_contype, before[0])
+    np.testing.assert_array_equal(scene.model.geom_conaffinity, before[1])
+    scene.forward()
+    proxy_body = scene.model.geom_bodyid[scene.proxy_geom]
+    assert scene.data.xpos[proxy_body][2] > 10  # parked far away
+    assert invert_pose(scene.object_pose(0)).shape == (4, 4)

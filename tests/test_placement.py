@@ -1,0 +1,53 @@
+import numpy as np
+
+from kgn_bench.shapes import PRIMITIVES
+from kgn_bench.sim.placement import place_objects, rectify_axisymmetric, settle
+from kgn_bench.sim.scene import Scene, SceneObject
+
+
+def _settled(seed):
+    rng = np.random.default_rng(seed)
+    objects = [SceneObject(cls.sample(rng), (0.5, 0.5, 0.5)) for cls in PRIMITIVES.values()]
+    scene = Scene(objects)
+    place_objects(scene, rng)
+    stats = settle(scene)
+    rectify_axisymmetric(scene)
+    return scene, stats
+
+
+def test_settled_objects_rest_on_the_table_at_rest():
+    for seed in range(3):
+        scene, stats = _settled(seed)
+        assert stats.sim_time <= 3.0
+        lin, ang = scene.object_speeds()
+        assert np.all(lin == 0) and np.all(ang == 0)
+        for i, obj in enumerate(scene.objects):
+            T = scene.object_pose(i)
+            verts = obj.shape.mesh().vertices @ T[:3, :3].T + T[:3, 3]
+            # the lowest point of the smooth mesh touches the table top (polygonal collision pieces
+            # and contact softness allow a few millimetres)
+            assert abs(verts[:, 2].min()) < 4e-3, (seed, obj.shape.name, verts[:, 2].min())
+            assert np.all(np.abs(T[:2, 3]) < 0.5)
+        # nothing moves when simulated further
+        before = scene.object_poses()
+        scene.step(100)
+        assert np.abs(scene.object_poses()[:, :3, 3] - before[:, :3, 3]).max() < 2e-3
+
+
+def test_placement_is_deterministic():
+    a, _ = _settled(11)
+    b, _ = _settled(11)
+    np.testing.assert_array_equal(a.object_poses(), b.object_poses())
+
+
+def test_lying_axisymmetric_objects_point_x_down():
+    found = 0
+    for seed in range(6):
+        scene, _ = _settled(seed)
+        for i, obj in enumerate(scene.objects):
+            if obj.shape.axisymmetric:
+                T = scene.object_pose(i)
+                if abs(T[2, 2]) < 0.9:
+                    found += 1
+                    assert T[2, 0] < -0.99  # object +x points (almost) straight down
+    assert found > 0

@@ -1,0 +1,45 @@
+import mujoco
+import numpy as np
+import pytest
+
+from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz
+from kgn_bench.shapes import PRIMITIVES
+from kgn_bench.shapes.primitives import Cuboid, Stick
+from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
+
+
+def _six_objects(rng):
+    return [SceneObject(cls.sample(rng), (0.5, 0.5, 0.5)) for cls in PRIMITIVES.values()]
+
+
+def test_object_pose_is_the_body_pose():
+    T = make_pose(matrix_from_quat_wxyz([0.9, 0.1, -0.3, 0.2]), [0.1, -0.05, 0.2])
+    scene = Scene([SceneObject(Cuboid((0.05, 0.06, 0.07)), (1, 0, 0), T)])
+    b = scene.body_ids[0]
+    np.testing.assert_allclose(scene.object_pose(0), T, atol=1e-12)
+    np.testing.assert_allclose(scene.data.xpos[b], T[:3, 3], atol=1e-12)
+    np.testing.assert_allclose(scene.data.xmat[b].reshape(3, 3), T[:3, :3], atol=1e-12)
+
+
+def test_mass_and_physics_options():
+    box = Cuboid((0.05, 0.06, 0.07))
+    scene = Scene([SceneObject(box, (1, 0, 0), make_pose(t=[0, 0, 0.035]))])
+    assert scene.model.body_mass[scene.body_ids[0]] == pytest.approx(box.mass())
+    assert scene.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert scene.model.opt.timestep == 0.002
+
+
+def test_step_raises_on_divergence():
+    scene = Scene([SceneObject(Stick(0.01, 0.05), (1, 0, 0), make_pose(t=[0, 0, 0.01]))])
+    scene.data.qvel[:] = np.nan
+    with pytest.raises(PhysicsError):
+        scene.step(1)
+
+
+def test_object_contacts_detects_interpenetration():
+    a = SceneObject(Cuboid((0.05, 0.05, 0.05)), (1, 0, 0), make_pose(t=[0, 0, 0.025]))
+    b = SceneObject(Cuboid((0.05, 0.05, 0.05)), (0, 1, 0), make_pose(t=[0.03, 0, 0.025]))
+    scene = Scene([a, b])
+    assert scene.object_contacts(1, np.array([0]))
+    scene.set_object_pose(1, make_pose(t=[0.2, 0, 0.025]))
+    assert not scene.object_contacts(1, np.array([0]))
