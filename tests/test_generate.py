@@ -1,0 +1,107 @@
+"""The dataset generator end to end: files, determinism across workers, resume, refusals, and
+consistency between annotations, renders and masks."""
+
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from kgn_bench.data.format import DatasetError, SceneAnnotation, read_split, read_view, scene_dir
+from kgn_bench.data.generate import GenerateConfig, generate_dataset, relabel_grasps
+from kgn_bench.geometry import invert_pose, project, transform_points
+from kgn_bench.shapes import EVAL_DENSITY, TRAIN_DENSITY
+
+
+def _annotations(root, n):
+    return [(scene_dir(root, i) / "scene.json").read_bytes() for i in range(n)]
+
+
+def test_layout_and_split(tiny_dataset):
+    root, config = tiny_dataset
+    for i in range(config.scenes):
+        names = sorted(p.name for p in scene_dir(root, i).iterdir())
+        assert names == sorted(["scene.json"] + [f"{k}_{v}.png" for k in ("rgb", "depth", "mask") for v in range(2)])
+    train, test = read_split(root, "train"), read_split(root, "test")
+    assert sorted(train + test) == list(range(config.scenes)) and len(test) == 1
+    big = GenerateConfig(scenes=1000).split()
+    assert len(big[1]) == 200 and not set(big[0]) & set(big[1])
+
+
+def test_same_seed_same_files_whatever_the_worker_count(tiny_dataset, tmp_path):
+    root, config = tiny_dataset
+    other = tmp_path / "w2"
+    generate_dataset(config, other, workers=2, progress=False)
+    assert _annotations(root, 3) == _annotations(other, 3)
+    for i in range(3):
+        a, b = read_view(scene_dir(root, i), 1), read_view(scene_dir(other, i), 1)
+        np.testing.assert_array_equal(a.depth, b.depth)
+        np.testing.assert_array_equal(a.mask, b.mask)
+
+
+def test_resume_regenerates_only_missing_scenes(tiny_dataset, tmp_path):
+    root, config = tiny_dataset
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    shutil.rmtree(scene_dir(copy, 1))
+    (copy / "scenes" / ".tmp-00001-999").mkdir()  # a crashed write
+    (copy / "test.txt").unlink()
+    kept = os.stat(scene_dir(copy, 0) / "scene.json").st_mtime_ns
+    stats = generate_dataset(config, copy, workers=1, progress=False)
+    assert stats.scenes == 1
+    assert os.stat(scene_dir(copy, 0) / "scene.json").st_mtime_ns == kept
+    assert _annotations(copy, 3) == _annotations(root, 3)
+    assert not list((copy / "scenes").glob(".tmp-*"))
+    assert (copy / "test.txt").read_text() == (root / "test.txt").read_text()
+
+
+def test_refuses_foreign_or_different_folders(tiny_dataset, tmp_path):
+    root, config = tiny_dataset
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep me")
+    with pytest.raises(DatasetError, match="not empty"):
+        generate_dataset(config, foreign, progress=False)
+    other = GenerateConfig(mode="multi", scenes=4, views=2, seed=7)
+    with pytest.raises(DatasetError, match="other settings \\(scenes\\)"):
+        generate_dataset(other, root, progress=False)
+    small = GenerateConfig(mode="single", scenes=1, views=1, seed=3)
+    generate_dataset(small, foreign, overwrite=True, progress=False)
+    assert (foreign / "notes.txt").read_text() == "keep me"
+    assert len(SceneAnnotation.load(scene_dir(foreign, 0) / "scene.json").objects) == 1
+
+
+def test_relabelling_reproduces_stored_labels_and_densifies(tiny_dataset):
+    root, _ = tiny_dataset
+    ann = SceneAnnotation.load(scene_dir(root, 2) / "scene.json")
+    again = relabel_grasps(ann, TRAIN_DENSITY)
+    for obj, g in zip(ann.objects, again):
+        np.testing.assert_allclose(g.poses, obj.grasps.poses, atol=1e-12)
+        np.testing.assert_array_equal(g.collides, obj.grasps.collides)
+    dense = relabel_grasps(ann, EVAL_DENSITY)
+    assert sum(len(g) for g in dense) == 120 + 360 + 60 + 300 + 60 + 30
+
+
+def test_grasps_project_onto_their_own_objects(tiny_dataset):
+    """Collision-free grasp origins, projected with K, land on (or right beside) their object's mask."""
+    root, config = tiny_dataset
+    hits = total = 0
+    for i in range(config.scenes):
+        folder = scene_dir(root, i)
+        ann = SceneAnnotation.load(folder / "scene.json")
+        for v in range(config.views):
+            view = read_view(folder, v)
+            T_cw = invert_pose(ann.camera_poses[v])
+            for k, obj in enumerate(ann.objects):
+                free = obj.grasps.free()
+                if not len(free):
+                    continue
+                uv = np.rint(project(transform_points(T_cw, free.poses[:, :3, 3]), ann.intrinsics.K)).astype(int)
+                ys, xs = np.nonzero(view.mask == k + 1)
+                if len(xs) == 0:
+                    continue
+                d = np.hypot(uv[:, :1] - xs[None], uv[:, 1:] - ys[None]).min(axis=1)
+                hits += int(np.sum(d <= 3))
+                total += len(d)
+    assert total > 50
+    assert hits / total > 0.9, (hits, total)
