@@ -41,6 +41,7 @@ def _fail(message: str) -> int:
 def _cmd_data_generate(args) -> int:
     from kgn_bench.data.format import DatasetError
     from kgn_bench.data.generate import GenerateConfig, generate_dataset
+    from kgn_bench.sim.scene import PhysicsError
 
     config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed)
     try:
@@ -48,6 +49,8 @@ def _cmd_data_generate(args) -> int:
                                  progress=not args.quiet)
     except DatasetError as e:
         return _fail(str(e))
+    except PhysicsError as e:
+        return _fail(f"{e}; finished scenes are kept, rerun the same command to resume")
     done = config.scenes - stats.scenes
     print(
         f"{args.out}: {config.scenes} scenes x {config.views} views ({stats.scenes} generated now"

@@ -105,3 +105,21 @@ def test_grasps_project_onto_their_own_objects(tiny_dataset):
                 total += len(d)
     assert total > 50
     assert hits / total > 0.9, (hits, total)
+
+
+def test_physics_failure_names_the_scene_and_leaves_no_partial_files(tmp_path, monkeypatch, capsys):
+    from kgn_bench import cli
+    from kgn_bench.data import generate as gen
+    from kgn_bench.sim.scene import PhysicsError
+
+    def explode(scene, config):
+        raise PhysicsError("object 0 (sphere) left the table")
+
+    monkeypatch.setattr(gen, "settle", explode)
+    with pytest.raises(PhysicsError, match=r"scene 0: object 0 .*after 5 attempts"):
+        generate_dataset(GenerateConfig(mode="single", scenes=1, views=1), tmp_path / "a", progress=False)
+    assert not any((tmp_path / "a" / "scenes").iterdir())
+    rc = cli.main(["data", "generate", "--mode", "single", "--scenes", "1", "--out", str(tmp_path / "b"), "--quiet"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "left the table" in err and "resume" in err

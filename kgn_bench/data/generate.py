@@ -124,9 +124,9 @@ def generate_scene(config: GenerateConfig, index: int) -> GeneratedScene:
         try:
             place_objects(scene, rng, config.placement)
             settle(scene, config.placement)
-        except PhysicsError:
+        except PhysicsError as e:
             if attempt == MAX_SCENE_ATTEMPTS - 1:
-                raise
+                raise PhysicsError(f"scene {index}: {e} (after {MAX_SCENE_ATTEMPTS} attempts)") from None
             continue
         break
     rectify_axisymmetric(scene)
