@@ -173,11 +173,7 @@ def scene_from_annotation(annotation: SceneAnnotation) -> Scene:
         SceneObject(shape_from_dims(o.type, o.dims), o.color, o.pose)
         for o in annotation.objects
     ]
-    scene = Scene(objects, annotation.intrinsics)
-    for i, o in enumerate(annotation.objects):
-        scene.set_object_pose(i, o.pose)
-    scene.forward()
-    return scene
+    return Scene(objects, annotation.intrinsics)
 
 
 def relabel_grasps(annotation: SceneAnnotation, density: GraspDensity) -> list[GraspSet]:
