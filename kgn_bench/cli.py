@@ -80,6 +80,79 @@ def _cmd_perf_data(args) -> int:
     return 0
 
 
+def _cmd_run(args) -> int:
+    from kgn_bench.bench.runner import RunError, run_benchmark
+    from kgn_bench.config import ConfigError, load_task, validate
+
+    try:
+        task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
+        validate(task, str(args.task))
+        out = args.out or Path("runs") / f"{task.name}_{args.detector}_seed{task.seed}"
+        result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
+                               progress=not args.quiet)
+    except (ConfigError, RunError, ValueError) as e:
+        return _fail(str(e))
+    from kgn_bench.bench.stats import summary_markdown
+
+    print(summary_markdown(result.summary))
+    t = result.timing
+    if result.ran:
+        rate = t["trials_per_minute"]
+        print(f"{result.ran} trials in {t['wall_s']:.1f} s ({rate} trials/min, {args.workers} workers)")
+    print(f"wrote {out}/summary.json, summary.md" + (", recording.rrd" if args.record else ""))
+    return 0
+
+
+def _cmd_check(args) -> int:
+    import json
+
+    from kgn_bench.bench.check import compare, format_check, write_baseline
+
+    summary_path = args.run / "summary.json"
+    if not summary_path.is_file():
+        return _fail(f"{summary_path} not found: run the benchmark first")
+    try:
+        summary = json.loads(summary_path.read_text())
+    except json.JSONDecodeError:
+        return _fail(f"{summary_path} is not valid JSON")
+    if args.update_baseline:
+        write_baseline(summary, args.baseline)
+        print(f"wrote baseline {args.baseline}")
+        return 0
+    if not args.baseline.is_file():
+        return _fail(f"baseline {args.baseline} not found (write one with --update-baseline)")
+    try:
+        baseline = json.loads(args.baseline.read_text())
+        rows = compare(summary, baseline)
+    except (json.JSONDecodeError, KeyError, ValueError) as e:
+        return _fail(f"baseline {args.baseline} unusable: {e}")
+    print(format_check(rows, summary, baseline))
+    return 1 if any(r.regressed for r in rows) else 0
+
+
+def _cmd_replay(args) -> int:
+    import shutil
+
+    from kgn_bench.viz.recording import open_viewer
+
+    path = args.run / "recording.rrd" if args.run.is_dir() else args.run
+    if not path.is_file():
+        return _fail(f"{path} not found: run with --record first")
+    if args.save:
+        shutil.copyfile(path, args.save)
+        print(f"wrote {args.save}")
+        return 0
+    open_viewer(path)
+    return 0
+
+
+def _cmd_perf_run(args) -> int:
+    from kgn_bench.perf import perf_run
+
+    print(perf_run(args.task, detector=args.detector, trials=args.trials, workers=args.workers))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="kgn-bench", description="KGNv2 grasp detection: dataset, training and closed-loop benchmark.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -115,6 +188,34 @@ def build_parser() -> argparse.ArgumentParser:
     pdata.add_argument("--workers", type=_int_at_least(1), default=2)
     pdata.add_argument("--mode", choices=("single", "multi"), default="multi")
     pdata.set_defaults(func=_cmd_perf_data)
+    prun = psub.add_parser("run", help="benchmark trials/min and the split (render, detect, select, simulate)")
+    prun.add_argument("task", type=Path)
+    prun.add_argument("--detector", default="oracle")
+    prun.add_argument("--trials", type=_int_at_least(1), default=2, help="trials per object (default 2)")
+    prun.add_argument("--workers", type=_int_at_least(1), default=2)
+    prun.set_defaults(func=_cmd_perf_run)
+
+    run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)")
+    run.add_argument("task", type=Path, help="task file (tasks/*.toml)")
+    run.add_argument("--detector", required=True, help="oracle, random, ...")
+    run.add_argument("--trials", type=_int_at_least(1), help="override the task's trial count")
+    run.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
+    run.add_argument("--workers", type=_int_at_least(1), default=1)
+    run.add_argument("--record", action="store_true", help="write a rerun recording (recording.rrd)")
+    run.add_argument("--out", type=Path, help="run folder (default runs/<task>_<detector>_seed<seed>)")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.set_defaults(func=_cmd_run)
+
+    check = sub.add_parser("check", help="fail (exit 1) when a run's rates dropped below a baseline's")
+    check.add_argument("run", type=Path, help="run folder holding summary.json")
+    check.add_argument("--baseline", type=Path, required=True, help="baseline JSON")
+    check.add_argument("--update-baseline", action="store_true", help="write the run's rates as the baseline")
+    check.set_defaults(func=_cmd_check)
+
+    replay = sub.add_parser("replay", help="open a run's rerun recording (or save a copy)")
+    replay.add_argument("run", type=Path, help="run folder or .rrd file")
+    replay.add_argument("--save", type=Path, help="copy the recording here instead of opening the viewer")
+    replay.set_defaults(func=_cmd_replay)
     return p
 
 

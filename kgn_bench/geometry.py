@@ -16,12 +16,14 @@ __all__ = [
     "invert_pose",
     "make_pose",
     "matrix_from_quat_wxyz",
+    "matrix_from_rotvec",
     "project",
     "quat_wxyz_from_matrix",
     "rot_x",
     "rot_y",
     "rot_z",
     "rotation_angle",
+    "rotvec_from_matrix",
     "transform_points",
 ]
 
@@ -152,3 +154,25 @@ def matrix_from_quat_wxyz(q: np.ndarray) -> np.ndarray:
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
         ]
     )
+
+
+def matrix_from_rotvec(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the rotation vector ``w`` (axis · angle, rad), by Rodrigues' formula."""
+    w = np.asarray(w, dtype=float)
+    theta = float(np.linalg.norm(w))
+    if theta < 1e-12:
+        return np.eye(3)
+    k = w / theta
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(theta) * K + (1.0 - np.cos(theta)) * (K @ K)
+
+
+def rotvec_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis · angle, angle in [0, π]) of the rotation matrix ``R``."""
+    q = quat_wxyz_from_matrix(R)
+    if q[0] < 0:
+        q = -q
+    s = float(np.linalg.norm(q[1:]))
+    if s < 1e-12:
+        return np.zeros(3)
+    return q[1:] / s * 2.0 * np.arctan2(s, q[0])

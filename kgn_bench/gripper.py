@@ -1,7 +1,17 @@
-"""Gripper dimensions: the one source for the collision proxy (and, later, the MJCF and the selector).
+"""Gripper dimensions: the one source for the MJCF gripper, the labelling proxy and the selector.
 
 All lengths in metres, expressed in the grasp frame (DESIGN §4): origin at the fingertip midpoint,
-+x = approach (the gripper body lies at x < 0), z = closing axis with the left finger at +z.
++x = approach (the gripper body lies at x < 0), z = closing axis with the left finger at +z, y = z × x.
+
+The physical gripper is three boxes in that frame, for a jaw opening ``w``:
+
+- left finger  ``x ∈ [−finger_length, 0]``, ``|y| ≤ finger_breadth/2``, ``z ∈ [w/2, w/2 + finger_thickness]``
+- right finger the mirror image at ``z ∈ [−w/2 − finger_thickness, −w/2]``
+- palm         ``x ∈ [−finger_length − palm_depth, −finger_length]``, ``|y| ≤ palm_breadth/2``,
+  ``|z| ≤ palm_half_span`` (wide enough to hold both fingers fully open)
+
+The fingertips lie in the plane ``x = 0``, so the TCP (the grasp origin) is exactly their midpoint.
+The wrist flange sits at ``x = −tcp_offset`` on the approach axis.
 """
 
 from __future__ import annotations
@@ -10,12 +20,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["GRIPPER", "GripperGeometry"]
+__all__ = ["GRIPPER", "GripperBox", "GripperGeometry", "box_corners"]
+
+
+@dataclass(frozen=True)
+class GripperBox:
+    """An axis-aligned box in the grasp frame: ``name``, ``centre`` (3,) and ``half`` extents (3,)."""
+
+    name: str
+    centre: np.ndarray
+    half: np.ndarray
 
 
 @dataclass(frozen=True)
 class GripperGeometry:
-    """Dimensions of the parallel-jaw gripper and of its collision proxy.
+    """Dimensions of the parallel-jaw gripper and of its labelling proxy.
 
     The proxy used to label ground-truth grasps (reference facts §2.5) is a solid box occupying
     ``x ∈ [−proxy_depth, 0]``, ``|y| ≤ proxy_thickness / 2`` and ``|z| ≤ w/2 + proxy_clearance`` in the
@@ -26,6 +45,62 @@ class GripperGeometry:
     proxy_thickness: float = 0.02
     proxy_clearance: float = 0.02
 
+    max_width: float = 0.20
+    """Largest jaw opening (m); every PS grasp family width (≤ 0.192 m) fits."""
+    finger_length: float = 0.07
+    finger_thickness: float = 0.01
+    finger_breadth: float = 0.018
+    palm_depth: float = 0.04
+    palm_breadth: float = 0.05
+    finger_mass: float = 0.03
+    palm_mass: float = 0.73
+    wrist_length: float = 0.12
+    wrist_radius: float = 0.045
+    """The arm's last link behind the flange (a capsule of this radius), as the selector sees it."""
+    grip_force: float = 40.0
+    """Force limit (N) of the closing servo; each finger pushes with half of it."""
+
+    @property
+    def tcp_offset(self) -> float:
+        """Distance from the wrist flange to the TCP along the approach axis."""
+        return self.finger_length + self.palm_depth
+
+    @property
+    def palm_half_span(self) -> float:
+        return self.max_width / 2.0 + self.finger_thickness + 0.005
+
+    @property
+    def finger_travel(self) -> float:
+        """Stroke of each finger's slide joint: the jaw opening is twice the finger position."""
+        return self.max_width / 2.0
+
+    # -- physical boxes ------------------------------------------------------------------------
+    def finger_box(self, side: int, width: float) -> GripperBox:
+        """Finger box for ``side`` +1 (left, +z) or −1 (right) at jaw opening ``width``."""
+        half = np.array([self.finger_length / 2.0, self.finger_breadth / 2.0, self.finger_thickness / 2.0])
+        centre = np.array([-self.finger_length / 2.0, 0.0, side * (width / 2.0 + self.finger_thickness / 2.0)])
+        return GripperBox("left_finger" if side > 0 else "right_finger", centre, half)
+
+    def palm_box(self) -> GripperBox:
+        half = np.array([self.palm_depth / 2.0, self.palm_breadth / 2.0, self.palm_half_span])
+        return GripperBox("palm", np.array([-self.finger_length - self.palm_depth / 2.0, 0.0, 0.0]), half)
+
+    def wrist_box(self) -> GripperBox:
+        """A box bounding the wrist (the last arm link) behind the flange."""
+        r = self.wrist_radius
+        half = np.array([self.wrist_length / 2.0, r, r])
+        return GripperBox("wrist", np.array([-self.tcp_offset - self.wrist_length / 2.0, 0.0, 0.0]), half)
+
+    def boxes(self, width: float) -> list[GripperBox]:
+        """The solid boxes at jaw opening ``width``: left finger, right finger, palm, wrist."""
+        return [self.finger_box(+1, width), self.finger_box(-1, width), self.palm_box(), self.wrist_box()]
+
+    def closing_region(self, width: float) -> GripperBox:
+        """The space swept by the finger faces when closing from ``width``: what a grasp must enclose."""
+        half = np.array([self.finger_length / 2.0, self.finger_breadth / 2.0, width / 2.0])
+        return GripperBox("closing_region", np.array([-self.finger_length / 2.0, 0.0, 0.0]), half)
+
+    # -- labelling proxy -----------------------------------------------------------------------
     def proxy_half_extents(self, width: float | np.ndarray) -> np.ndarray:
         """Half extents (..., 3) of the proxy box along the grasp frame's x, y, z axes."""
         w = np.asarray(width, dtype=float)
@@ -41,9 +116,17 @@ class GripperGeometry:
 
     def proxy_corners(self, poses: np.ndarray, widths: np.ndarray) -> np.ndarray:
         """The 8 corners (N, 8, 3) of the proxy boxes of grasps ``poses`` (N, 4, 4), in the poses' frame."""
-        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
-        local = self.proxy_centre + signs[None] * self.proxy_half_extents(widths)[:, None, :]
+        local = self.proxy_centre + _BOX_SIGNS[None] * self.proxy_half_extents(widths)[:, None, :]
         return np.einsum("nij,nkj->nki", poses[:, :3, :3], local) + poses[:, None, :3, 3]
+
+
+_BOX_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+
+
+def box_corners(box: GripperBox, poses: np.ndarray) -> np.ndarray:
+    """The 8 corners (N, 8, 3) of a grasp-frame ``box`` placed at each of ``poses`` (N, 4, 4)."""
+    local = box.centre + _BOX_SIGNS * box.half
+    return np.einsum("nij,kj->nki", poses[:, :3, :3], local) + poses[:, None, :3, 3]
 
 
 GRIPPER = GripperGeometry()

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from kgn_bench.data.generate import TIMING_KEYS, GenerateConfig, generate_dataset
 
-__all__ = ["perf_data"]
+__all__ = ["perf_data", "perf_run"]
 
 
 def perf_data(scenes: int = 20, workers: int = 2, mode: str = "multi", views: int = 5, seed: int = 0) -> str:
@@ -38,4 +38,34 @@ def perf_data(scenes: int = 20, workers: int = 2, mode: str = "multi", views: in
     for k in TIMING_KEYS:
         lines.append(f"| {k} | {per_view[k]:.1f} | {100 * per_view[k] / total:.0f} % |")
     lines.append(f"| total (worker time) | {total:.1f} | 100 % |")
+    return "\n".join(lines)
+
+
+def perf_run(task_path: str | Path, detector: str = "oracle", trials: int = 2, workers: int = 2) -> str:
+    """Run ``trials`` per object of a benchmark task into a temporary folder; report trials/min and the
+    per-trial split (setup = scene build + placement, render, detect, select, simulate = motion physics
+    and IK). Stages are per-trial worker seconds; with W workers throughput ≈ W / (sum of stages)."""
+    from kgn_bench.bench.runner import run_benchmark
+    from kgn_bench.bench.trial import TIMING_KEYS as RUN_KEYS
+    from kgn_bench.config import load_task
+
+    task = load_task(task_path).with_overrides(trials=trials)
+    with tempfile.TemporaryDirectory(prefix="kgn-perf-") as tmp:
+        result = run_benchmark(task, detector, Path(tmp) / "run", workers=workers, progress=False)
+    t = result.timing
+    per = t["per_trial_s"]
+    total = sum(per.values())
+    lines = [
+        f"benchmark: {task.name} ({task.protocol}), detector {detector}, {task.n_trials} trials, {workers} worker(s), "
+        f"{os.cpu_count()} cores",
+        "",
+        f"trials/min (wall, incl. worker start-up): {t['trials_per_minute']}",
+        f"wall: {t['wall_s']:.1f} s; simulated motion per trial: {t['simulated_s_per_trial']:.1f} s",
+        "",
+        "| stage | ms per trial | share |",
+        "| --- | ---: | ---: |",
+    ]
+    for k in RUN_KEYS:
+        lines.append(f"| {k} | {1e3 * per[k]:.0f} | {100 * per[k] / total:.0f} % |")
+    lines.append(f"| total (worker time) | {1e3 * total:.0f} | 100 % |")
     return "\n".join(lines)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from kgn_bench.sim.scene import GROUP_VISUAL, Scene
+from kgn_bench.sim.scene import GROUP_ROBOT, GROUP_VISUAL, Scene
 
 __all__ = ["RGBD", "SceneRenderer"]
 
@@ -66,6 +66,7 @@ class SceneRenderer:
         self._option = mujoco.MjvOption()
         self._option.geomgroup[:] = 0
         self._option.geomgroup[GROUP_VISUAL] = 1
+        self._option.geomgroup[GROUP_ROBOT] = 1
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._camera.fixedcamid = scene.camera_id

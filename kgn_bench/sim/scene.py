@@ -4,14 +4,15 @@ World frame (DESIGN §4): origin at the centre of the table top, +z up; the tabl
 box whose top face is z = 0. Each object is a free body whose frame is the shape's object frame, so the
 body pose *is* the object pose recorded in annotations (``T_world_obj``).
 
-Geom groups: 0 = rendered, 3 = collision-only (hidden), 5 = the gripper proxy (hidden). Collision
+Geom groups: 0 = rendered objects and table, 1 = rendered robot and work cell (``sim/robot.py``),
+3 = collision-only (hidden), 5 = the gripper proxy (hidden). Collision
 bits: table and objects have ``contype = 1, conaffinity = 3``; the proxy has ``contype = 2,
 conaffinity = 0``, so it touches objects but never moves them and is parked far away during physics.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -23,7 +24,7 @@ from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz, quat_wxyz_from_
 from kgn_bench.shapes.base import GeomSpec, Shape
 from kgn_bench.sim.camera import REALSENSE, Intrinsics, convert_camera_frame
 
-__all__ = ["TABLE_HALF_SIZE", "TABLE_THICKNESS", "PhysicsError", "Scene", "SceneObject"]
+__all__ = ["GROUP_ROBOT", "GROUP_VISUAL", "TABLE_HALF_SIZE", "TABLE_THICKNESS", "PhysicsError", "Scene", "SceneObject"]
 
 TABLE_HALF_SIZE = 0.5
 TABLE_THICKNESS = 0.04
@@ -33,7 +34,7 @@ OBJECT_FRICTION = (1.0, 0.005, 0.0001)
 TABLE_FRICTION = (0.8, 0.005, 0.0001)
 TABLE_RGBA = (0.5, 0.5, 0.5, 1.0)
 
-GROUP_VISUAL, GROUP_COLLISION, GROUP_PROXY = 0, 3, 5
+GROUP_VISUAL, GROUP_ROBOT, GROUP_COLLISION, GROUP_PROXY = 0, 1, 3, 5
 _PROXY_PARK = np.array([0.0, 0.0, 50.0])
 _DIVERGENCE_WARNINGS = np.array(
     [mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC], dtype=int
@@ -85,6 +86,7 @@ def build_mjcf(objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE) -
     H/2 − cy − ½)`` puts OpenCV's ``(cx, cy)`` where K says (tested by projection).
     """
     root = mjcf.RootElement(model="kgn_scene")
+    root.compiler.angle = "radian"
     root.option.timestep = TIMESTEP
     root.option.integrator = "implicitfast"
     root.option.cone = "elliptic"
@@ -143,10 +145,14 @@ def build_mjcf(objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE) -
 class Scene:
     """A compiled scene: the MuJoCo model and data plus the maps from objects to bodies and geoms."""
 
-    def __init__(self, objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE) -> None:
+    def __init__(self, objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE,
+                 extend: Callable[[mjcf.RootElement], None] | None = None) -> None:
+        """Compile ``objects`` into a scene; ``extend`` may add to the MJCF first (e.g. the robot work cell)."""
         self.objects = objects
         self.intrinsics = intrinsics
         root = build_mjcf(objects, intrinsics)
+        if extend is not None:
+            extend(root)
         self.model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
         self.data = mujoco.MjData(self.model)
         m = self.model

@@ -1,0 +1,150 @@
+"""One grasp attempt in the work cell: pre-grasp, straight approach, close, lift, carry to the bin,
+release; the outcome and its failure reason.
+
+Failure reasons (DESIGN §7): ``collision`` (before closing, the arm or palm touched anything, or a finger
+touched the table, bin or floor), ``missed`` (no object between both fingers after closing),
+``dropped_lift`` (held after closing but not held ``min_lift`` higher after the lift),
+``dropped_transport`` (lost on the way or released outside the bin), ``physics_error``. Success: the
+object is inside the bin after release. All poses are world frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+
+from kgn_bench.config import ExecutionConfig
+from kgn_bench.gripper import GRIPPER
+from kgn_bench.sim.control import IK, Executor, MotionAborted
+from kgn_bench.sim.robot import BIN, PARK_Q, READY_Q
+from kgn_bench.sim.scene import PhysicsError, Scene
+
+from .selector import Selection
+
+__all__ = ["FAILURE_REASONS", "AttemptResult", "bin_drop_q", "execute_grasp", "held_object"]
+
+FAILURE_REASONS = ("no_candidate", "unreachable", "missed", "dropped_lift", "dropped_transport", "collision",
+                   "physics_error", "detector_error")
+BIN_DROP_HEIGHT = 0.30
+
+
+@dataclass
+class AttemptResult:
+    """``reason`` None = success; ``object`` = index of the object that was held (or None)."""
+
+    reason: str | None
+    object: int | None = None
+    detail: str = ""
+
+
+@cache
+def bin_drop_q() -> np.ndarray:
+    """Arm configuration with the TCP ``BIN_DROP_HEIGHT`` above the bin centre, pointing down."""
+    ik = IK()
+    T = ik.tcp_pose(READY_Q)
+    T[:3, 3] = (*BIN.centre, BIN_DROP_HEIGHT)
+    result = ik.solve(T)
+    if not result.ok:
+        raise RuntimeError(f"the place bin is out of reach (IK error {result.position_error:.3f} m)")
+    return result.q
+
+
+def _contact_pairs(scene: Scene) -> np.ndarray:
+    """Geom id pairs (K, 2) of the contacts MuJoCo found at the last step."""
+    d = scene.data
+    return d.contact.geom[: d.ncon].copy() if d.ncon else np.zeros((0, 2), dtype=int)
+
+
+def held_object(scene: Scene, executor: Executor) -> int | None:
+    """The object touching both fingers' pads, if any (the lowest index when several)."""
+    pairs = _contact_pairs(scene)
+    touching = []
+    for pad in executor.robot.pad_geoms:
+        other = np.concatenate([pairs[pairs[:, 0] == pad, 1], pairs[pairs[:, 1] == pad, 0]])
+        labels = scene.geom_label[other]
+        touching.append(set(labels[labels > 0].tolist()))
+    both = sorted(touching[0] & touching[1])
+    return both[0] - 1 if both else None
+
+
+def _collision_monitor(scene: Scene, executor: Executor):
+    robot_geoms = executor.robot.geoms
+    pads = executor.robot.pad_geoms
+    is_robot = np.zeros(scene.model.ngeom, dtype=bool)
+    is_robot[robot_geoms] = True
+    is_pad = np.zeros(scene.model.ngeom, dtype=bool)
+    is_pad[pads] = True
+
+    def monitor() -> str | None:
+        pairs = _contact_pairs(scene)
+        if len(pairs) == 0:
+            return None
+        r0, r1 = is_robot[pairs[:, 0]], is_robot[pairs[:, 1]]
+        mixed = r0 ^ r1
+        if not np.any(mixed):
+            return None
+        robot = np.where(r0, pairs[:, 0], pairs[:, 1])[mixed]
+        other = np.where(r0, pairs[:, 1], pairs[:, 0])[mixed]
+        # fingers may touch objects; anything else touching anything is a collision
+        bad = ~is_pad[robot] | (scene.geom_label[other] == 0)
+        return "collision" if np.any(bad) else None
+
+    return monitor
+
+
+def _retreat(executor: Executor, sel: Selection, cfg: ExecutionConfig) -> None:
+    """After a failed grasp: open, back off along the approach, park. Errors here do not change the outcome."""
+    try:
+        executor.set_gripper(sel.width, 0.2)
+        executor.move_linear(sel.pregrasp, cfg.approach_time)
+        executor.move_joints(PARK_Q)
+    except (MotionAborted, PhysicsError):
+        pass
+
+
+def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: ExecutionConfig,
+                  park: bool = True) -> AttemptResult:
+    """Execute a selected grasp from the park configuration and report the outcome."""
+    assert sel.grasp is not None and sel.q_pregrasp is not None
+    monitor = _collision_monitor(scene, executor)
+    try:
+        try:
+            executor.set_gripper(sel.width, 0.2)
+            executor.move_joints(sel.q_pregrasp, monitor=monitor)
+            executor.move_linear(sel.grasp, cfg.approach_time, monitor=monitor)
+            executor.wait(0.2, monitor=monitor)
+        except MotionAborted as e:
+            _retreat(executor, sel, cfg)
+            return AttemptResult(e.reason, detail=str(e))
+        executor.set_gripper(0.0, 0.4)
+        executor.wait(0.25)
+        held = held_object(scene, executor)
+        if held is None:
+            _retreat(executor, sel, cfg)
+            return AttemptResult("missed", detail=f"jaws closed to {executor.robot.opening(scene.data) * 1e3:.1f} mm")
+        z0 = scene.object_pose(held)[2, 3]
+        lift = executor.ik.tcp_pose(executor.q_ref)
+        lift[2, 3] += cfg.lift_height
+        executor.move_linear(lift, 0.8)
+        executor.wait(cfg.settle_time)
+        rise = scene.object_pose(held)[2, 3] - z0
+        if held_object(scene, executor) != held or rise < cfg.min_lift:
+            executor.set_gripper(GRIPPER.max_width, 0.2)
+            if park:
+                executor.move_joints(PARK_Q)
+            return AttemptResult("dropped_lift", held, f"object rose {rise * 1e3:.0f} mm")
+        executor.move_joints(bin_drop_q())
+        carried = held_object(scene, executor) == held
+        executor.set_gripper(GRIPPER.max_width, 0.3)
+        executor.wait(0.6)
+        in_bin = BIN.contains(scene.object_pose(held)[:3, 3])
+        if park:
+            executor.move_joints(PARK_Q)
+        if not carried or not in_bin:
+            where = np.round(scene.object_pose(held)[:3, 3], 3).tolist()
+            return AttemptResult("dropped_transport", held, f"object ended at {where}")
+        return AttemptResult(None, held)
+    except PhysicsError as e:
+        return AttemptResult("physics_error", detail=str(e))

@@ -1,0 +1,215 @@
+"""The benchmark runner: trials in worker processes, one JSON line per finished trial, resumable.
+
+A run folder holds ``run.json`` (the run's identity: task config, detector, seed, trial count, git commit),
+``trials.jsonl`` (append-only, one finished trial per line, in completion order), then ``summary.json``,
+``summary.md`` and ``timing.json``, and with ``record`` the per-trial recordings merged into
+``recording.rrd``. Rerunning the same command resumes: finished trials are kept, a line cut short by a
+kill is dropped, and only missing trials run. Trial outcomes depend only on (task, seed, index), so the
+summary is the same whatever the worker count or interruptions; ``timing.json`` holds the wall-clock figures.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from kgn_bench.config import TaskConfig
+from kgn_bench.data.format import atomic_write_text
+from kgn_bench.progress import Progress
+
+from .stats import Rate, summarise, summary_markdown
+from .trial import TIMING_KEYS, run_trial
+
+__all__ = ["RunError", "RunResult", "read_trials", "run_benchmark"]
+
+
+class RunError(RuntimeError):
+    """A run folder that cannot be used (it holds another run, or a corrupt file)."""
+
+
+@dataclass
+class RunResult:
+    summary: dict[str, Any]
+    timing: dict[str, Any]
+    ran: int
+
+
+def _git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5,
+                             cwd=Path(__file__).resolve().parent)
+        return out.stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
+    """What makes two runs the same run (and so resumable into one folder)."""
+    return {"task": task.name, "protocol": task.protocol, "detector": detector, "seed": task.seed,
+            "trials": task.n_trials, "config": task.to_dict()}
+
+
+def read_trials(path: Path) -> list[dict[str, Any]]:
+    """Finished trial records of ``trials.jsonl``; a cut-short last line (from a kill) is removed from the file."""
+    if not path.is_file():
+        return []
+    text = path.read_text()
+    lines = text.splitlines(keepends=True)
+    records, good = [], []
+    for n, line in enumerate(lines):
+        try:
+            if not line.endswith("\n"):
+                raise json.JSONDecodeError("unterminated", line, 0)
+            records.append(json.loads(line))
+            good.append(line)
+        except json.JSONDecodeError:
+            if n != len(lines) - 1:
+                raise RunError(f"{path}: line {n + 1} is not valid JSON") from None
+    if len(good) != len(lines):
+        atomic_write_text(path, "".join(good))
+    seen: set[int] = set()
+    unique = []
+    for r in records:
+        if r["index"] not in seen:
+            seen.add(r["index"])
+            unique.append(r)
+    return unique
+
+
+def _prepare(out: Path, identity: dict[str, Any]) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    run_file = out / "run.json"
+    if run_file.is_file():
+        try:
+            existing = json.loads(run_file.read_text())
+        except json.JSONDecodeError:
+            raise RunError(f"{run_file} is corrupt; remove the folder or use another --out") from None
+        mine = {k: v for k, v in existing.items() if k != "commit"}
+        if mine != identity:
+            diff = [k for k in identity if mine.get(k) != identity[k]]
+            raise RunError(f"{out} holds another run (different {', '.join(diff)}); use another --out")
+    elif any(p.name != ".lock" for p in out.iterdir()):
+        raise RunError(f"{out} is not empty and holds no run; use another --out")
+    else:
+        atomic_write_text(run_file, json.dumps({**identity, "commit": _git_commit()}, indent=2) + "\n")
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _worker_init(detector: str) -> None:
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+    _worker_setup(detector)
+
+
+def _worker_setup(detector: str) -> None:
+    from kgn_bench.detectors import make_detector
+    from kgn_bench.sim.control import IK
+
+    if _WORKER.get("name") != detector:
+        _WORKER.update(name=detector, detector=make_detector(detector), ik=IK())
+
+
+def _run_one(args: tuple[TaskConfig, int, str | None]) -> dict[str, Any]:
+    task, index, record = args
+    return run_trial(task, index, _WORKER["detector"], _WORKER["ik"], Path(record) if record else None)
+
+
+def _running_rates(records: list[dict[str, Any]]) -> str:
+    attempts = [a for r in records for a in r["attempts"]]
+    text = f"success {Rate(sum(a['success'] for a in attempts), len(attempts)).value * 100:.0f}%"
+    if records and records[0]["protocol"] == "multi_object":
+        clear = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records))
+        text += f" clear {clear.value * 100:.0f}%"
+    return text
+
+
+def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, record: bool = False,
+                  progress: bool = True) -> RunResult:
+    """Run (or finish) ``task`` with ``detector`` into ``out``; writes the summaries; returns them."""
+    if workers < 1:
+        raise ValueError("workers must be ≥ 1")
+    from kgn_bench.detectors import DETECTORS
+
+    if detector not in DETECTORS:
+        raise ValueError(f"unknown detector {detector!r}; known: {', '.join(sorted(DETECTORS))}")
+    out = Path(out)
+    identity = run_identity(task, detector)
+    _prepare(out, identity)
+    trials_path = out / "trials.jsonl"
+    records = read_trials(trials_path)
+    done = {r["index"] for r in records}
+    todo = [i for i in range(task.n_trials) if i not in done]
+    rec_dir = out / "recordings"
+    if record:
+        rec_dir.mkdir(exist_ok=True)
+        for stale in rec_dir.glob("*.tmp"):
+            stale.unlink()
+    jobs = [(task, i, str(rec_dir / f"trial_{i:05d}.rrd.tmp") if record else None) for i in todo]
+    bar = Progress(len(todo), f"run {task.name} {detector}", unit="trials", enabled=progress)
+    start = time.perf_counter()
+
+    def finished(rec: dict[str, Any]) -> None:
+        if record:
+            tmp = rec_dir / f"trial_{rec['index']:05d}.rrd.tmp"
+            if tmp.is_file():
+                os.replace(tmp, rec_dir / f"trial_{rec['index']:05d}.rrd")
+        line = json.dumps(rec, sort_keys=True) + "\n"
+        with open(trials_path, "a") as f:
+            f.write(line)
+            f.flush()
+            os.fsync(f.fileno())
+        records.append(rec)
+        bar.update(1, _running_rates(records))
+
+    if workers == 1 or len(todo) <= 1:
+        _worker_setup(detector)
+        for job in jobs:
+            finished(_run_one(job))
+    else:
+        with ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
+                                 initializer=_worker_init, initargs=(detector,)) as pool:
+            futures = [pool.submit(_run_one, job) for job in jobs]
+            for fut in as_completed(futures):
+                finished(fut.result())
+    wall = time.perf_counter() - start
+    run_meta = {k: identity[k] for k in ("task", "protocol", "detector", "seed")}
+    summary = summarise(records, run_meta)
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    atomic_write_text(out / "summary.md", summary_markdown(summary))
+    timing = timing_summary(records, wall, len(todo), workers)
+    atomic_write_text(out / "timing.json", json.dumps(timing, indent=2) + "\n")
+    if record:
+        parts = sorted(rec_dir.glob("trial_*.rrd"))
+        if parts:
+            from kgn_bench.viz.recording import merge_recordings
+
+            merge_recordings(parts, out / "recording.rrd")
+    return RunResult(summary, timing, len(todo))
+
+
+def timing_summary(records: list[dict[str, Any]], wall: float, ran: int, workers: int) -> dict[str, Any]:
+    """Mean wall seconds per trial of each stage, and trials per minute of this invocation."""
+    n = max(1, len(records))
+    per_trial = {k: sum(r["timing"].get(k, 0.0) for r in records) / n for k in TIMING_KEYS}
+    sim = sum(a["sim_time"] for r in records for a in r["attempts"]) / n
+    return {
+        "trials_run": ran,
+        "workers": workers,
+        "wall_s": round(wall, 3),
+        "trials_per_minute": round(60.0 * ran / wall, 2) if ran and wall > 0 else None,
+        "per_trial_s": {k: round(v, 4) for k, v in per_trial.items()},
+        "simulated_s_per_trial": round(sim, 3),
+    }
+
+
+def remove_run(out: Path) -> None:
+    shutil.rmtree(out, ignore_errors=True)

@@ -1,0 +1,117 @@
+"""Rates with Wilson 95 % score intervals, and run summaries built from trial records.
+
+Wilson interval for k successes in n trials, z = 1.96:
+``(p̂ + z²/2n ± z·sqrt(p̂(1 − p̂)/n + z²/4n²)) / (1 + z²/n)``. Unlike the normal approximation it stays
+inside [0, 1] and is sensible at 0/n and n/n.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .attempt import FAILURE_REASONS
+from .selector import REJECTIONS
+
+__all__ = ["Rate", "summarise", "summary_markdown", "wilson_interval"]
+
+Z95 = 1.959963984540054
+
+
+def wilson_interval(k: int, n: int, z: float = Z95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion; (0, 1) when n = 0."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
+
+
+@dataclass(frozen=True)
+class Rate:
+    """``k`` of ``n`` with its point estimate and Wilson 95 % interval."""
+
+    k: int
+    n: int
+
+    @property
+    def value(self) -> float:
+        return self.k / self.n if self.n else float("nan")
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        return wilson_interval(self.k, self.n)
+
+    def to_dict(self) -> dict[str, Any]:
+        lo, hi = self.interval
+        return {"k": self.k, "n": self.n, "rate": round(self.value, 6) if self.n else None,
+                "low": round(lo, 6), "high": round(hi, 6)}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Rate:
+        return cls(int(d["k"]), int(d["n"]))
+
+    def __str__(self) -> str:
+        lo, hi = self.interval
+        return f"{100 * self.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] ({self.k}/{self.n})"
+
+
+def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, Any]:
+    """The deterministic summary of a run: rates, failure counts, per-object rates, selector rejections.
+
+    ``run`` is the run's identity (task, detector, seed, ...), copied in. Records are sorted by index, so
+    the summary does not depend on the order trials finished in.
+    """
+    records = sorted(records, key=lambda r: r["index"])
+    attempts = [a for r in records for a in r["attempts"]]
+    successes = sum(a["success"] for a in attempts)
+    failures = Counter(a["reason"] for a in attempts if not a["success"])
+    rejected = Counter()
+    for a in attempts:
+        rejected.update(a.get("rejected", {}))
+    rates = {"success": Rate(successes, len(attempts)).to_dict()}
+    if run.get("protocol") == "multi_object":
+        rates["clear"] = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records)).to_dict()
+        rates["scenes_cleared"] = Rate(sum(r["removed"] == r["placed"] for r in records), len(records)).to_dict()
+    per_object: dict[str, list[int]] = {}
+    if run.get("protocol") == "single_object":
+        for r in records:
+            k, n = per_object.setdefault(r["objects"][0], [0, 0])
+            per_object[r["objects"][0]] = [k + sum(a["success"] for a in r["attempts"]), n + len(r["attempts"])]
+    return {
+        **run,
+        "trials": len(records),
+        "attempts": len(attempts),
+        "rates": rates,
+        "failures": {reason: failures.get(reason, 0) for reason in FAILURE_REASONS},
+        "per_object": {name: Rate(k, n).to_dict() for name, (k, n) in sorted(per_object.items())},
+        "selector_rejections": {name: rejected.get(name, 0) for name in REJECTIONS},
+    }
+
+
+def summary_markdown(summary: dict[str, Any]) -> str:
+    """A human-readable Markdown table of a summary."""
+    lines = [f"# {summary.get('task', 'run')}: {summary.get('detector', '?')} "
+             f"({summary.get('protocol', '?')}, seed {summary.get('seed', '?')})", "",
+             f"{summary['trials']} trials, {summary['attempts']} attempts.", "",
+             "| rate | value [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
+    for name, d in summary["rates"].items():
+        r = Rate.from_dict(d)
+        lo, hi = r.interval
+        lines.append(f"| {name} | {100 * r.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {r.k} / {r.n} |")
+    if summary["per_object"]:
+        lines += ["", "| object | success [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
+        for name, d in summary["per_object"].items():
+            r = Rate.from_dict(d)
+            lo, hi = r.interval
+            lines.append(f"| {name} | {100 * r.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {r.k} / {r.n} |")
+    lines += ["", "| failure reason | attempts |", "| --- | --- |"]
+    lines += [f"| {k} | {v} |" for k, v in summary["failures"].items()]
+    lines += ["", "| selector rejections (candidates) | count |", "| --- | --- |"]
+    lines += [f"| {k} | {v} |" for k, v in summary["selector_rejections"].items()]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,197 @@
+"""Benchmark trials: a work-cell scene, then capture → detect → select → execute until the protocol ends.
+
+``single_object``: one object, one attempt. ``multi_object`` (clearance): ``objects_per_scene`` objects,
+attempts until the table is clear, ``max_consecutive_failures`` failures in a row, a physics error, or
+``max_attempts_per_object × objects`` attempts. Everything random in trial ``index`` is drawn from
+``default_rng([seed, index])``, so a trial's outcome depends only on the task, its seed and its index.
+
+The returned record is plain JSON data; its ``timing`` block (wall seconds) is the only part that varies
+between runs.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kgn_bench.config import TaskConfig
+from kgn_bench.detectors.base import Candidates, Detector, Observation
+from kgn_bench.detectors.oracle import on_table
+from kgn_bench.shapes import shape_class
+from kgn_bench.sim.camera import orbit_pose
+from kgn_bench.sim.control import IK, Executor
+from kgn_bench.sim.placement import PlacementConfig, place_objects, settle
+from kgn_bench.sim.render import SceneRenderer
+from kgn_bench.sim.robot import PARK_Q, add_workcell
+from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
+
+from .attempt import AttemptResult, execute_grasp
+from .selector import Selection, select_grasp
+
+__all__ = ["TIMING_KEYS", "camera_pose", "run_trial", "trial_objects"]
+
+TIMING_KEYS = ("setup", "render", "detect", "select", "simulate")
+RECORD_EVERY = 5
+"""Record the state every 5 control ticks (20 Hz of simulated time)."""
+
+
+def camera_pose(task: TaskConfig) -> np.ndarray:
+    """The task's fixed camera, ``T_world_cam`` (OpenCV axes)."""
+    c = task.camera
+    T = orbit_pose(c.distance, np.deg2rad(c.elevation_deg), np.deg2rad(c.azimuth_deg))
+    T[:3, 3] += np.asarray(c.target)
+    return T
+
+
+def trial_objects(task: TaskConfig, index: int, rng: np.random.Generator) -> list[SceneObject]:
+    """The objects of trial ``index``: for single_object the set's ``index // trials``-th object;
+    for multi_object ``objects_per_scene`` names drawn without replacement while the set allows."""
+    if task.protocol == "single_object":
+        names = [task.objects[index // task.trials]]
+    else:
+        k = task.objects_per_scene
+        replace = k > len(task.objects)
+        names = [task.objects[i] for i in rng.choice(len(task.objects), size=k, replace=replace)]
+    return [SceneObject(shape_class(n).sample(rng), tuple(float(c) for c in rng.uniform(0.1, 0.9, 3)))
+            for n in names]
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.totals = dict.fromkeys(TIMING_KEYS, 0.0)
+
+    def add(self, key: str, since: float) -> float:
+        now = time.perf_counter()
+        self.totals[key] += now - since
+        return now
+
+
+def _build_scene(task: TaskConfig, index: int, ik: IK, on_tick: Callable[[], None] | None):
+    rng = np.random.default_rng([task.seed, index])
+    for attempt in range(5):
+        objects = trial_objects(task, index, rng)
+        scene = Scene(objects, extend=add_workcell)
+        executor = Executor(scene, ik)
+        executor.reset(PARK_Q)
+        try:
+            place_objects(scene, rng, PlacementConfig())
+            settle(scene, PlacementConfig())
+            executor.on_tick = on_tick
+            return scene, executor
+        except PhysicsError:
+            if attempt == 4:
+                raise
+    raise AssertionError("unreachable")
+
+
+def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: Path | None = None) -> dict[str, Any]:
+    """Run trial ``index`` of ``task`` with ``detector``; returns its JSON record."""
+    clock = _Clock()
+    t = time.perf_counter()
+    recorder = None
+    state = {"ticks": 0}
+    scene_ref: dict[str, Scene] = {}
+
+    def on_tick() -> None:
+        state["ticks"] += 1
+        if recorder is not None and state["ticks"] % RECORD_EVERY == 0:
+            recorder.log_state(scene_ref["scene"].model, scene_ref["scene"].data)
+
+    scene, executor = _build_scene(task, index, ik, on_tick)
+    scene_ref["scene"] = scene
+    if record is not None:
+        from kgn_bench.viz.recording import Recorder
+
+        recorder = Recorder(record, f"{task.name}/trial_{index:05d}")
+        recorder.log_geometry(scene.model)
+        recorder.log_state(scene.model, scene.data)
+    detector.reset([task.seed, index])
+    if detector.privileged:
+        detector.attach(scene)  # type: ignore[attr-defined]
+    cam = camera_pose(task)
+    names = [o.shape.name for o in scene.objects]
+    placed = sum(on_table(scene, i) for i in range(len(names)))
+    attempts: list[dict[str, Any]] = []
+    t = clock.add("setup", t)
+    max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
+    consecutive = 0
+    with SceneRenderer(scene) as renderer:
+        while len(attempts) < max_attempts and consecutive < task.execution.max_consecutive_failures:
+            if not any(on_table(scene, i) for i in range(len(names))):
+                break
+            t = time.perf_counter()
+            view = renderer.render(cam)
+            obs = Observation(view.rgb, view.depth, scene.intrinsics, cam)
+            t = clock.add("render", t)
+            if recorder is not None:
+                recorder.log_observation(view.rgb, view.depth, scene.intrinsics.K, cam, scene.data.time)
+            attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names)
+            attempts.append(attempt)
+            if recorder is not None:
+                if cands is not None and len(cands):
+                    recorder.log_candidates(cands.world_poses(cam), cands.widths, sel.scores, sel.index,
+                                            scene.data.time)
+                outcome = "success" if attempt["success"] else attempt["reason"]
+                what = f" ({attempt['object']})" if attempt["object"] else ""
+                recorder.log_outcome(f"attempt {len(attempts)}: {outcome}{what} {attempt['detail']}".strip(),
+                                     scene.data.time)
+            consecutive = 0 if attempt["success"] else consecutive + 1
+            if attempt["reason"] == "physics_error":
+                break
+    if recorder is not None:
+        recorder.close()
+    removed = sum(a["success"] for a in attempts)
+    return {
+        "index": index,
+        "protocol": task.protocol,
+        "objects": names,
+        "placed": int(placed),
+        "removed": int(removed),
+        "attempts": attempts,
+        "timing": {k: round(v, 4) for k, v in clock.totals.items()},
+    }
+
+
+def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,
+             clock: _Clock, names: list[str]) -> tuple[dict[str, Any], Selection | None, Candidates | None]:
+    t = time.perf_counter()
+    sim0 = scene.data.time
+    cands = sel = None
+    try:
+        cands = detector.detect(obs)
+    except Exception as e:  # a detector bug must not stop the run: record it
+        clock.add("detect", t)
+        result = AttemptResult("detector_error", detail=f"{type(e).__name__}: {e}".splitlines()[0][:200])
+    else:
+        t = clock.add("detect", t)
+        points = obs.points_world(stride=task.selector.point_stride)
+        sel = select_grasp(cands.world_poses(obs.camera_pose), cands.widths, cands.confidences,
+                           cands.reprojection_errors, points, executor.ik, task.selector, task.execution)
+        t = clock.add("select", t)
+        if sel.index is None:
+            result = AttemptResult(sel.reason or "no_candidate")
+        else:
+            park = task.protocol != "single_object"
+            result = execute_grasp(scene, executor, sel, task.execution, park=park)
+            clock.add("simulate", t)
+            if park and result.reason != "physics_error":
+                try:
+                    executor.wait(task.execution.settle_time)
+                except PhysicsError as e:
+                    result = AttemptResult("physics_error", detail=str(e))
+    record = {
+        "success": result.reason is None,
+        "reason": result.reason,
+        "object": names[result.object] if result.object is not None else None,
+        "candidates": 0 if cands is None else len(cands),
+        "selected": None if sel is None or sel.index is None else sel.index,
+        "score": None if sel is None or sel.index is None else round(float(sel.scores[sel.index]), 6),
+        "rejected": {} if sel is None else dict(sel.rejected),
+        "detail": result.detail,
+        "sim_time": round(scene.data.time - sim0, 3),
+    }
+    return record, sel, cands

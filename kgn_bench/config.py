@@ -1,0 +1,190 @@
+"""Typed benchmark task configs (tasks/*.toml), validated with one-line errors naming the problem.
+
+A task file has the sections ``[task]``, ``[objects]``, ``[camera]``, ``[selector]`` and ``[execution]``;
+every key is optional except ``task.name`` and ``task.protocol``. Unknown sections or keys, wrong types,
+out-of-range values and unknown object names are errors (``ConfigError``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import tomllib
+
+from kgn_bench.shapes import PRIMITIVES
+
+__all__ = ["PROTOCOLS", "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig",
+           "load_task"]
+
+PROTOCOLS = ("single_object", "multi_object")
+SCORES = ("confidence_minus_error", "paper_literal")
+
+
+class ConfigError(ValueError):
+    """A task file that cannot be used; the message names the file and the key."""
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The fixed camera: on a sphere about ``target`` (world, m) at ``distance``, ``elevation_deg`` above
+    the table plane and ``azimuth_deg`` (``sim.camera.orbit_pose``: 0 = on the +y side, 90 = on the −x
+    side, over the robot)."""
+
+    distance: float = 0.8
+    elevation_deg: float = 60.0
+    azimuth_deg: float = 90.0
+    target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class SelectorConfig:
+    """Grasp selection (DESIGN §7). ``score``: ``confidence_minus_error`` = c − λ·RE (the default) or
+    ``paper_literal`` = c + RE (the paper's printed formula, kept as an ablation)."""
+
+    score: str = "confidence_minus_error"
+    reprojection_weight: float = 0.02
+    max_candidates: int = 100
+    collision_points: int = 3
+    enclosed_points: int = 5
+    table_clearance: float = 0.003
+    point_stride: int = 2
+
+
+@dataclass(frozen=True)
+class ExecutionConfig:
+    """Motion parameters (m, s). ``grasp_depth``: how much further than the grasp origin the TCP goes
+    along the approach (clipped so the fingertips stay ``table_clearance`` above the table)."""
+
+    pregrasp_distance: float = 0.10
+    grasp_depth: float = 0.01
+    approach_time: float = 0.8
+    lift_height: float = 0.15
+    min_lift: float = 0.10
+    max_consecutive_failures: int = 3
+    max_attempts_per_object: int = 3
+    settle_time: float = 0.3
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """A benchmark task. ``trials``: per object of ``objects`` for ``single_object``, scenes for
+    ``multi_object`` (each with ``objects_per_scene`` objects drawn from ``objects``)."""
+
+    name: str
+    protocol: str
+    seed: int = 0
+    trials: int = 10
+    objects: tuple[str, ...] = tuple(PRIMITIVES)
+    objects_per_scene: int = 5
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    selector: SelectorConfig = field(default_factory=SelectorConfig)
+    execution: ExecutionConfig = field(default_factory=ExecutionConfig)
+
+    @property
+    def n_trials(self) -> int:
+        return self.trials * len(self.objects) if self.protocol == "single_object" else self.trials
+
+    def with_overrides(self, trials: int | None = None, seed: int | None = None) -> TaskConfig:
+        from dataclasses import replace
+
+        return replace(self, trials=self.trials if trials is None else trials, seed=self.seed if seed is None else seed)
+
+    def to_dict(self) -> dict[str, Any]:
+        from dataclasses import asdict
+
+        return asdict(self)
+
+
+def _coerce(where: str, key: str, value: Any, default: Any) -> Any:
+    """Check ``value`` against the type of ``default``; ints are accepted for floats, lists for tuples."""
+    if isinstance(default, bool):
+        ok = isinstance(value, bool)
+    elif isinstance(default, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        value = float(value) if ok else value
+    elif isinstance(default, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif isinstance(default, str):
+        ok = isinstance(value, str)
+    elif isinstance(default, tuple):
+        ok = isinstance(value, list)
+        value = tuple(float(v) if isinstance(default[0], float) else v for v in value) if ok else value
+    else:
+        ok = True
+    if not ok:
+        raise ConfigError(f"{where}: {key} must be {type(default).__name__}, got {value!r}")
+    return value
+
+
+def _section(where: str, cls, table: dict[str, Any]):
+    known = {f.name: f for f in fields(cls)}
+    defaults = cls()
+    kwargs = {}
+    for key, value in table.items():
+        if key not in known:
+            raise ConfigError(f"{where}: unknown key {key!r} (known: {', '.join(known)})")
+        kwargs[key] = _coerce(where, key, value, getattr(defaults, key))
+    return cls(**kwargs)
+
+
+def load_task(path: str | Path) -> TaskConfig:
+    """Read and validate a task file."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such task file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML ({e})") from None
+    sections = {"task", "objects", "camera", "selector", "execution"}
+    for name in raw:
+        if name not in sections:
+            raise ConfigError(f"{path}: unknown section [{name}] (known: {', '.join(sorted(sections))})")
+    task = dict(raw.get("task", {}))
+    for key in ("name", "protocol"):
+        if key not in task:
+            raise ConfigError(f"{path}: [task] needs {key!r}")
+    allowed = {"name": "", "protocol": "", "seed": 0, "trials": 0}
+    for key in task:
+        if key not in allowed:
+            raise ConfigError(f"{path}: [task] unknown key {key!r} (known: {', '.join(allowed)})")
+        task[key] = _coerce(f"{path} [task]", key, task[key], allowed[key])
+    if task["protocol"] not in PROTOCOLS:
+        raise ConfigError(f"{path}: protocol must be one of {', '.join(PROTOCOLS)}, got {task['protocol']!r}")
+    objects = dict(raw.get("objects", {}))
+    names = objects.pop("set", list(PRIMITIVES))
+    per_scene = objects.pop("per_scene", 5)
+    if objects:
+        raise ConfigError(f"{path}: [objects] unknown key {next(iter(objects))!r} (known: set, per_scene)")
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise ConfigError(f"{path}: [objects] set must be a non-empty list of object names")
+    for n in names:
+        if n not in PRIMITIVES:
+            raise ConfigError(f"{path}: unknown object {n!r} (known: {', '.join(PRIMITIVES)})")
+    if not isinstance(per_scene, int) or per_scene < 1:
+        raise ConfigError(f"{path}: [objects] per_scene must be a positive integer, got {per_scene!r}")
+    cfg = TaskConfig(
+        name=task["name"], protocol=task["protocol"], seed=task.get("seed", 0), trials=task.get("trials", 10),
+        objects=tuple(names), objects_per_scene=per_scene,
+        camera=_section(f"{path} [camera]", CameraConfig, raw.get("camera", {})),
+        selector=_section(f"{path} [selector]", SelectorConfig, raw.get("selector", {})),
+        execution=_section(f"{path} [execution]", ExecutionConfig, raw.get("execution", {})),
+    )
+    validate(cfg, str(path))
+    return cfg
+
+
+def validate(cfg: TaskConfig, where: str = "task") -> None:
+    """Range checks shared by files and command-line overrides."""
+    if cfg.trials < 1:
+        raise ConfigError(f"{where}: trials must be ≥ 1, got {cfg.trials}")
+    if cfg.selector.score not in SCORES:
+        raise ConfigError(f"{where}: selector.score must be one of {', '.join(SCORES)}, got {cfg.selector.score!r}")
+    if not 0.3 <= cfg.camera.distance <= 2.0:
+        raise ConfigError(f"{where}: camera.distance must be in [0.3, 2.0] m, got {cfg.camera.distance}")
+    if not 10.0 <= cfg.camera.elevation_deg <= 90.0:
+        raise ConfigError(f"{where}: camera.elevation_deg must be in [10, 90], got {cfg.camera.elevation_deg}")
+    if cfg.execution.max_consecutive_failures < 1:
+        raise ConfigError(f"{where}: execution.max_consecutive_failures must be ≥ 1")

@@ -1,0 +1,64 @@
+"""The oracle detector: ground-truth grasp families read from the simulator (privileged).
+
+It is the harness's upper bound, not a detector: it sees object types, sizes and poses, which no camera
+gives. For every object still on the table it returns the evaluation-density families (DESIGN §5), minus
+those whose labelling proxy collides (``sim/collision.py``), in the camera frame. Confidence favours
+top-down approaches (the executor's easiest) near the object's centre (the stablest):
+``c = ½ (1 − x_grasp · ẑ_world) − 2 m⁻¹ · ‖t_grasp − t_object‖``. There is no reprojection error (NaN).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kgn_bench.geometry import invert_pose
+from kgn_bench.grasp import GraspSet
+from kgn_bench.shapes.base import EVAL_DENSITY
+from kgn_bench.sim.collision import label_collisions
+from kgn_bench.sim.scene import TABLE_HALF_SIZE, Scene
+
+from .base import Candidates, DetectorError, Observation
+
+__all__ = ["OracleDetector", "on_table"]
+
+
+def on_table(scene: Scene, i: int) -> bool:
+    """Whether object ``i`` rests on the table top (not in the bin, not fallen off)."""
+    t = scene.object_pose(i)[:3, 3]
+    return bool(-0.01 < t[2] < 0.5 and np.all(np.abs(t[:2]) < TABLE_HALF_SIZE))
+
+
+class OracleDetector:
+    """Ground-truth grasps of the objects on the table (privileged: call ``attach(scene)`` first)."""
+
+    name = "oracle"
+    privileged = True
+
+    def __init__(self) -> None:
+        self._scene: Scene | None = None
+
+    def attach(self, scene: Scene) -> None:
+        self._scene = scene
+
+    def reset(self, seed: list[int]) -> None:
+        pass
+
+    def detect(self, observation: Observation) -> Candidates:
+        if self._scene is None:
+            raise DetectorError("the oracle needs the simulator: call attach(scene) before detect()")
+        scene = self._scene
+        sets, centres = [], []
+        for i, obj in enumerate(scene.objects):
+            if not on_table(scene, i):
+                continue
+            T = scene.object_pose(i)
+            grasps = label_collisions(scene, i, obj.shape.grasps(EVAL_DENSITY).transformed(T)).free()
+            sets.append(grasps)
+            centres.append(np.repeat(T[None, :3, 3], len(grasps), axis=0))
+        if not sets:
+            return Candidates.empty()
+        world = GraspSet.concatenate(sets)
+        off_centre = np.linalg.norm(world.poses[:, :3, 3] - np.concatenate(centres), axis=1)
+        conf = 0.5 * (1.0 - world.poses[:, 2, 0]) - 2.0 * off_centre
+        poses = invert_pose(observation.camera_pose) @ world.poses
+        return Candidates(poses, world.widths.copy(), conf, np.full(len(poses), np.nan))
