@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN     = $(VENV)/bin
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo test lint perf clean
+.PHONY: setup demo benchmark test regression perf clean
 
 $(BIN)/kgn-bench: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -14,7 +14,12 @@ $(BIN)/kgn-bench: pyproject.toml constraints.txt
 
 setup: $(BIN)/kgn-bench
 
-# The main job (until the benchmark lands): a small multi-object PS dataset and a preview of one view.
+# The main job: the single-object closed-loop benchmark (60 trials) with the oracle detector.
+# (The learned detectors plug in with --detector once their weights ship.)
+benchmark: setup
+	$(BIN)/kgn-bench run tasks/single_object.toml --detector oracle --workers 2 --out runs/single_object_oracle
+
+# A small multi-object PS dataset and a preview of one view.
 demo: setup
 	$(BIN)/kgn-bench data generate --mode multi --scenes 20 --seed 0 --workers 2 --out runs/ps_multi_demo
 	$(BIN)/kgn-bench data show runs/ps_multi_demo --scene 0 --view 0 --out runs/ps_multi_demo/preview.png
@@ -23,8 +28,15 @@ test: setup
 	$(BIN)/ruff check kgn_bench tests
 	$(BIN)/pytest -q
 
+# CI's regression check: a tiny fixed-seed oracle task against the committed baseline.
+regression: setup
+	rm -rf runs/ci_oracle
+	$(BIN)/kgn-bench run tasks/ci_oracle.toml --detector oracle --workers 2 --quiet --out runs/ci_oracle
+	$(BIN)/kgn-bench check runs/ci_oracle --baseline results/baseline_ci_oracle.json
+
 perf: setup
 	$(BIN)/kgn-bench perf data --scenes 40 --workers 2
+	$(BIN)/kgn-bench perf run tasks/single_object.toml --trials 5 --workers 2
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache

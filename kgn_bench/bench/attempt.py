@@ -89,7 +89,12 @@ def _collision_monitor(scene: Scene, executor: Executor):
         other = np.where(r0, pairs[:, 1], pairs[:, 0])[mixed]
         # fingers may touch objects; anything else touching anything is a collision
         bad = ~is_pad[robot] | (scene.geom_label[other] == 0)
-        return "collision" if np.any(bad) else None
+        if not np.any(bad):
+            return None
+        m = scene.model
+        k = int(np.flatnonzero(bad)[0])
+        monitor.detail = f"{m.geom(int(robot[k])).name} touched {m.geom(int(other[k])).name}"  # type: ignore[attr-defined]
+        return "collision"
 
     return monitor
 
@@ -117,13 +122,14 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
             executor.wait(0.2, monitor=monitor)
         except MotionAborted as e:
             _retreat(executor, sel, cfg)
-            return AttemptResult(e.reason, detail=str(e))
+            return AttemptResult(e.reason, detail=f"{getattr(monitor, 'detail', '')} ({e})")
         executor.set_gripper(0.0, 0.4)
         executor.wait(0.25)
         held = held_object(scene, executor)
         if held is None:
+            detail = f"jaws closed to {executor.robot.opening(scene.data) * 1e3:.1f} mm"
             _retreat(executor, sel, cfg)
-            return AttemptResult("missed", detail=f"jaws closed to {executor.robot.opening(scene.data) * 1e3:.1f} mm")
+            return AttemptResult("missed", detail=detail)
         z0 = scene.object_pose(held)[2, 3]
         lift = executor.ik.tcp_pose(executor.q_ref)
         lift[2, 3] += cfg.lift_height

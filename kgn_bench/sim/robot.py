@@ -69,11 +69,13 @@ class PlaceBin:
     half: float = 0.13
     height: float = 0.10
     wall: float = 0.01
+    pile_height: float = 0.25
 
     def contains(self, p: np.ndarray) -> bool:
-        """Whether world point ``p`` lies inside the bin (within the walls, below their top)."""
+        """Whether world point ``p`` lies in the bin: between the walls, above the floor, and no higher than
+        ``pile_height`` (objects may rest on others already in the bin)."""
         d = np.abs(np.asarray(p[:2]) - self.centre)
-        return bool(np.all(d <= self.half) and -0.01 <= p[2] <= self.height)
+        return bool(np.all(d <= self.half) and -0.01 <= p[2] <= self.pile_height)
 
 
 BIN = PlaceBin()
