@@ -1,0 +1,174 @@
+"""Task files: the shipped tasks load, and every kind of bad file is a ConfigError naming the file and the problem."""
+
+from pathlib import Path
+
+import pytest
+
+from kgn_bench.config import ConfigError, TaskConfig, load_task, validate
+from kgn_bench.shapes import PRIMITIVES
+
+TASKS = Path(__file__).resolve().parents[1] / "tasks"
+HEAD = '[task]\nname = "t"\nprotocol = "single_object"\n'
+
+
+def test_single_object_task():
+    t = load_task(TASKS / "single_object.toml")
+    assert (t.name, t.protocol, t.seed, t.trials) == ("single_object", "single_object", 0, 10)
+    assert t.objects == ("cuboid", "cylinder", "ring", "stick", "sphere", "semi_sphere")
+    assert t.n_trials == 60  # trials per object × objects
+    assert t.camera.distance == 0.8 and t.camera.elevation_deg == 60.0 and t.camera.azimuth_deg == 90.0
+    assert isinstance(t.camera.distance, float)
+    assert t.selector.score == "confidence_minus_error" and t.selector.reprojection_weight == 0.02
+    assert t.execution.max_consecutive_failures == 3
+
+
+def test_multi_object_task():
+    t = load_task(TASKS / "multi_object.toml")
+    assert (t.name, t.protocol, t.trials, t.objects_per_scene) == ("multi_object", "multi_object", 10, 5)
+    assert set(t.objects) == set(PRIMITIVES)
+    assert t.n_trials == 10  # scenes, not scenes × objects
+
+
+def test_ci_oracle_task_and_overrides():
+    t = load_task(TASKS / "ci_oracle.toml")
+    assert (t.name, t.protocol, t.trials, t.n_trials) == ("ci_oracle", "single_object", 1, 6)
+    o = t.with_overrides(trials=3, seed=7)
+    assert (o.trials, o.seed, o.n_trials) == (3, 7, 18)
+    assert t.with_overrides() == t
+    d = t.to_dict()
+    assert d["name"] == "ci_oracle" and d["camera"]["distance"] == 0.8 and list(d["objects"]) == list(t.objects)
+
+
+def test_defaults_fill_optional_sections(tmp_path):
+    p = tmp_path / "min.toml"
+    p.write_text('[task]\nname = "m"\nprotocol = "multi_object"\n[camera]\ndistance = 1\n')
+    t = load_task(p)
+    assert t == TaskConfig(name="m", protocol="multi_object", camera=t.camera)
+    assert t.camera.distance == 1.0 and isinstance(t.camera.distance, float)  # ints accepted for floats
+    assert t.objects == tuple(PRIMITIVES) and t.trials == 10 and t.n_trials == 10
+
+
+@pytest.mark.parametrize(
+    "body, fragment",
+    [
+        ("[task\nname = 1\n", "not valid TOML"),
+        (HEAD + "[robot]\nspeed = 1\n", "unknown section [robot]"),
+        (HEAD + "[camera]\nzoom = 2.0\n", "unknown key 'zoom'"),
+        (HEAD + "colour = 'red'\n", "[task] unknown key 'colour'"),
+        (HEAD + "[objects]\nset = ['cuboid']\ncount = 3\n", "[objects] unknown key 'count'"),
+        (HEAD + "[camera]\ndistance = 'far'\n", "distance must be float, got 'far'"),
+        (HEAD + "[execution]\nmax_attempts_per_object = 2.5\n", "max_attempts_per_object must be int"),
+        (HEAD + "[selector]\nmax_candidates = true\n", "max_candidates must be int"),
+        ('[task]\nname = "t"\nprotocol = "single_object"\ntrials = "ten"\n', "trials must be int"),
+        (HEAD + "[objects]\nset = ['cuboid', 'teapot']\n", "unknown object 'teapot'"),
+        (HEAD + "[objects]\nset = []\n", "non-empty list"),
+        (HEAD + "[objects]\nper_scene = 0\n", "per_scene must be a positive integer"),
+        ('[task]\nname = "t"\nprotocol = "clearance"\n', "protocol must be one of single_object, multi_object"),
+        ('[task]\nprotocol = "single_object"\n', "[task] needs 'name'"),
+        ('[task]\nname = "t"\n', "[task] needs 'protocol'"),
+        ('[task]\nname = "t"\nprotocol = "single_object"\ntrials = 0\n', "trials must be ≥ 1"),
+        (HEAD + "[selector]\nscore = 'c_times_re'\n", "selector.score must be one of"),
+        (HEAD + "[camera]\ndistance = 5.0\n", "camera.distance must be in [0.3, 2.0]"),
+        (HEAD + "[camera]\nelevation_deg = 5\n", "camera.elevation_deg must be in [10, 90]"),
+        (HEAD + "[execution]\nmax_consecutive_failures = 0\n", "max_consecutive_failures must be ≥ 1"),
+    ],
+    ids=[
+        "malformed",
+        "unknown_section",
+        "unknown_camera_key",
+        "unknown_task_key",
+        "unknown_objects_key",
+        "wrong_type_float",
+        "wrong_type_int",
+        "bool_for_int",
+        "wrong_type_trials",
+        "unknown_object",
+        "empty_set",
+        "per_scene_0",
+        "bad_protocol",
+        "missing_name",
+        "missing_protocol",
+        "trials_0",
+        "bad_score",
+        "distance_range",
+        "elevation_range",
+        "max_failures_0",
+    ],
+)
+def test_bad_task_files_name_the_file_and_the_problem(tmp_path, body, fragment):
+    p = tmp_path / "bad.toml"
+    p.write_text(body)
+    with pytest.raises(ConfigError) as e:
+        load_task(p)
+    msg = str(e.value)
+    assert str(p) in msg and fragment in msg
+    assert "\n" not in msg
+
+
+def _bug(reason):
+    return pytest.mark.xfail(strict=True, reason=reason)
+
+
+@pytest.mark.parametrize(
+    "body, fragment",
+    [
+        pytest.param(
+            HEAD + "[camera]\ntarget = ['a', 0, 0]\n",
+            "target",
+            marks=_bug("BUG: _coerce calls float() on tuple items unchecked: bare ValueError, no file name"),
+        ),
+        pytest.param(
+            HEAD + "[camera]\ntarget = [0.1, 0.2]\n",
+            "target",
+            marks=_bug("BUG: tuple keys are not length-checked (camera.target of 2 items accepted)"),
+        ),
+        pytest.param(
+            HEAD + "seed = -1\n",
+            "seed",
+            marks=_bug("BUG: a negative seed is accepted; numpy's default_rng rejects it at run time"),
+        ),
+        pytest.param(
+            HEAD + "[objects]\nper_scene = true\n",
+            "per_scene",
+            marks=_bug("BUG: per_scene = true passes the isinstance(int) check (bool is an int)"),
+        ),
+        pytest.param(
+            HEAD + "[selector]\npoint_stride = 0\n",
+            "point_stride",
+            marks=_bug("BUG: point_stride = 0 is accepted; slicing [::0] raises in every trial"),
+        ),
+        pytest.param(
+            "camera = 1\n" + HEAD,
+            "camera",
+            marks=_bug("BUG: a section given as a plain value crashes with AttributeError"),
+        ),
+        pytest.param("task = 1\n", "task", marks=_bug("BUG: [task] given as a plain value crashes with TypeError")),
+    ],
+    ids=[
+        "target_item_type",
+        "target_length",
+        "negative_seed",
+        "per_scene_bool",
+        "point_stride_0",
+        "section_not_table",
+        "task_not_table",
+    ],
+)
+def test_loader_gaps(tmp_path, body, fragment):
+    p = tmp_path / "bad.toml"
+    p.write_text(body)
+    with pytest.raises(ConfigError) as e:
+        load_task(p)
+    assert str(p) in str(e.value) and fragment in str(e.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ConfigError, match="no such task file"):
+        load_task(tmp_path / "nope.toml")
+
+
+def test_validate_checks_overrides():
+    t = load_task(TASKS / "ci_oracle.toml")
+    validate(t.with_overrides(trials=2), "cli")
+    with pytest.raises(ConfigError, match=r"^cli: trials must be ≥ 1, got 0$"):
+        validate(t.with_overrides(trials=0), "cli")

@@ -1,0 +1,157 @@
+"""Grasp selection on a synthetic observed point cloud: a 4 cm box (5 cm tall) at the table centre, the table
+around it, and a second box at the far edge of the table, out of the arm's reach. Real mink IK."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from kgn_bench.bench.selector import REJECTIONS, score_candidates, select_grasp
+from kgn_bench.config import ExecutionConfig, SelectorConfig
+from kgn_bench.geometry import make_pose, rot_z
+from kgn_bench.gripper import GRIPPER
+from kgn_bench.sim.control import IK
+from kgn_bench.sim.robot import READY_Q
+
+HEIGHT = 0.05
+FAR = np.array([0.45, 0.0])  # the second box: 1 m from the arm base
+EXEC = ExecutionConfig()
+CFG = SelectorConfig()
+# top-down grasp frame: approach x = world −z, closing z = world +y, y = z × x = world −x
+DOWN = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
+
+
+def _grid(x0, x1, y0, y1, step):
+    X, Y = np.meshgrid(np.arange(x0, x1 + 1e-9, step), np.arange(y0, y1 + 1e-9, step))
+    return np.stack([X.ravel(), Y.ravel()], axis=1)
+
+
+def _box_top(cx, cy):
+    xy = _grid(cx - 0.02, cx + 0.02, cy - 0.02, cy + 0.02, 0.002)
+    return np.c_[xy, np.full(len(xy), HEIGHT)]
+
+
+@pytest.fixture(scope="module")
+def points():
+    table = _grid(-0.45, 0.45, -0.45, 0.45, 0.01)
+    free = np.all(np.abs(table) > 0.021, axis=1) & np.any(np.abs(table - FAR) > 0.021, axis=1)
+    table = np.c_[table[free], np.zeros(free.sum())]
+    return np.concatenate([_box_top(0.0, 0.0), _box_top(*FAR), table])
+
+
+@pytest.fixture(scope="module")
+def ik():
+    return IK()
+
+
+def _pose(xyz, yaw=0.0):
+    return make_pose(rot_z(yaw) @ DOWN, xyz)
+
+
+def _select(poses, widths, points, ik, conf=None, errors=None, cfg=CFG):
+    n = len(poses)
+    conf = np.linspace(1.0, 0.5, n) if conf is None else np.asarray(conf, dtype=float)
+    errors = np.full(n, np.nan) if errors is None else np.asarray(errors, dtype=float)
+    return select_grasp(np.stack(poses), np.asarray(widths, dtype=float), conf, errors, points, ik, cfg, EXEC)
+
+
+def test_down_frame_is_a_rotation():
+    assert np.linalg.det(DOWN) == pytest.approx(1.0)
+    np.testing.assert_allclose(np.cross(DOWN[:, 2], DOWN[:, 0]), DOWN[:, 1])
+
+
+@pytest.mark.parametrize(
+    "pose, width, rejection",
+    [
+        (_pose((0.0, 0.0, 0.02)), 0.25, "width"),  # wider than the jaws open
+        (_pose((0.0, 0.0, 0.02)), 0.0, "width"),
+        (_pose((0.0, 0.0, 0.02)), 0.02, "collision"),  # fingers would pass through the box top
+        (_pose((0.0, 0.0, 0.02), np.pi / 2), 0.025, "collision"),  # same, closing along x
+        (_pose((0.0, 0.05, 0.02)), 0.06, "collision"),  # a finger lands on the box top (y = 0.005 ... 0.015)
+        (_pose((0.25, 0.2, 0.02)), 0.06, "enclosure"),  # empty space above the table
+        (_pose((0.0, 0.0, 0.12)), 0.06, "enclosure"),  # above the box: fingertips do not reach it
+        (_pose((0.25, -0.2, -0.03)), 0.06, "collision"),  # under the table top
+        (_pose((*FAR, 0.02)), 0.06, "ik"),  # a fine grasp the arm cannot reach
+    ],
+)
+def test_each_check_rejects_and_counts(points, ik, pose, width, rejection):
+    sel = _select([pose], [width], points, ik)
+    assert sel.index is None and sel.grasp is None and sel.q_grasp is None
+    assert sel.rejected == {name: int(name == rejection) for name in REJECTIONS}
+    assert sel.reason == ("unreachable" if rejection == "ik" else "no_candidate")
+
+
+def test_good_top_down_grasp_is_selected(points, ik):
+    sel = _select([_pose((0.0, 0.0, 0.02))], [0.06], points, ik)
+    assert sel.index == 0 and sel.reason is None
+    assert sel.width == pytest.approx(0.07)  # opened 1 cm wider than the candidate
+    g = sel.grasp
+    # the same grasp up to the 180° flip, pushed grasp_depth further along the approach (down)
+    np.testing.assert_allclose(g[:3, 0], [0.0, 0.0, -1.0], atol=1e-12)
+    np.testing.assert_allclose(np.abs(g[:3, 2]), [0.0, 1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(g[:3, 3], [0.0, 0.0, 0.02 - EXEC.grasp_depth], atol=1e-12)
+    # of the two symmetric forms, the one whose closing axis is nearer the ready wrist's
+    assert g[:3, 2] @ ik.tcp_pose(READY_Q)[:3, 2] > 0
+    np.testing.assert_allclose(sel.pregrasp[:3, :3], g[:3, :3])
+    np.testing.assert_allclose(sel.pregrasp[:3, 3], g[:3, 3] + [0.0, 0.0, EXEC.pregrasp_distance], atol=1e-12)
+    lo, hi = ik.index.arm_limits.T
+    for q, T in ((sel.q_pregrasp, sel.pregrasp), (sel.q_grasp, g)):
+        assert np.all(q >= lo) and np.all(q <= hi)
+        reached = ik.tcp_pose(q)
+        assert np.linalg.norm(reached[:3, 3] - T[:3, 3]) < 1e-3
+        assert reached[:3, 0] @ T[:3, 0] > np.cos(np.deg2rad(1.0))
+
+
+def test_grasp_depth_stops_above_the_table(points, ik):
+    sel = _select([_pose((0.0, 0.0, 0.008))], [0.06], points, ik)
+    assert sel.index == 0
+    assert sel.grasp[2, 3] == pytest.approx(CFG.table_clearance)  # pushed only 5 mm, not 10
+
+
+def test_rejections_accumulate_until_a_feasible_candidate(points, ik):
+    poses = [
+        _pose((0.0, 0.0, 0.02)),  # width
+        _pose((0.0, 0.0, 0.02)),  # collision
+        _pose((0.25, 0.2, 0.02)),  # enclosure
+        _pose((0.0, 0.0, -0.03)),  # collision (table)
+        _pose((*FAR, 0.02)),  # ik
+        _pose((0.0, 0.0, 0.02), np.pi / 2),  # good
+        _pose((0.0, 0.0, 0.02)),  # good too, but ranked last
+    ]
+    widths = [0.3, 0.02, 0.06, 0.06, 0.06, 0.06, 0.06]
+    sel = _select(poses, widths, points, ik)
+    assert sel.index == 5
+    assert sel.rejected == {"width": 1, "collision": 2, "enclosure": 1, "ik": 1}
+    np.testing.assert_allclose(np.abs(sel.grasp[:3, 2]), [1.0, 0.0, 0.0], atol=1e-12)
+    # max_candidates cuts the list: the good ones are never looked at
+    cut = _select(poses, widths, points, ik, cfg=replace(CFG, max_candidates=5))
+    assert cut.index is None and sum(cut.rejected.values()) == 5 and cut.reason == "unreachable"
+
+
+def test_score_formulas():
+    c = np.array([0.9, 0.5, 0.2])
+    re = np.array([10.0, np.nan, 0.0])
+    np.testing.assert_allclose(score_candidates(c, re, CFG), [0.9 - 0.2, 0.5, 0.2])
+    np.testing.assert_allclose(score_candidates(c, re, replace(CFG, score="paper_literal")), [10.9, 0.5, 0.2])
+    np.testing.assert_allclose(score_candidates(c, re, replace(CFG, reprojection_weight=0.0)), c)
+
+
+def test_score_order_decides_between_feasible_grasps(points, ik):
+    """Two feasible grasps; the reprojection error flips which one each score picks."""
+    poses = [_pose((0.0, 0.0, 0.02)), _pose((0.0, 0.0, 0.02), np.pi / 2)]
+    conf, errors = [0.5, 0.6], [0.0, 20.0]
+    default = _select(poses, [0.06, 0.06], points, ik, conf, errors)
+    np.testing.assert_allclose(default.scores, [0.5, 0.6 - 0.02 * 20.0])
+    assert default.index == 0
+    literal = _select(poses, [0.06, 0.06], points, ik, conf, errors, cfg=replace(CFG, score="paper_literal"))
+    np.testing.assert_allclose(literal.scores, [0.5, 20.6])
+    assert literal.index == 1
+    # without errors the confidence alone decides
+    assert _select(poses, [0.06, 0.06], points, ik, conf).index == 1
+    assert sum(default.rejected.values()) == sum(literal.rejected.values()) == 0
+
+
+def test_widths_up_to_the_maximum_opening_pass(points, ik):
+    sel = _select([_pose((0.0, 0.0, 0.02))], [GRIPPER.max_width], points, ik)
+    assert sel.rejected["width"] == 0
+    assert sel.width == pytest.approx(GRIPPER.max_width)  # capped, not max_width + 1 cm

@@ -1,0 +1,137 @@
+"""Wilson intervals against known values, and run summaries of hand-built trial records."""
+
+import json
+import math
+import random
+
+import pytest
+
+from kgn_bench.bench.attempt import FAILURE_REASONS
+from kgn_bench.bench.selector import REJECTIONS
+from kgn_bench.bench.stats import Z95, Rate, summarise, summary_markdown, wilson_interval
+
+
+@pytest.mark.parametrize(
+    "k, n, low, high",
+    [
+        (0, 10, 0.0, 0.2775),
+        (10, 10, 0.7225, 1.0),
+        (5, 10, 0.2366, 0.7634),
+        (1, 2, 0.0945, 0.9055),
+        (57, 60, 0.8630, 0.9829),
+        (20, 60, 0.2273, 0.4594),
+    ],
+)
+def test_wilson_known_values(k, n, low, high):
+    lo, hi = wilson_interval(k, n)
+    assert lo == pytest.approx(low, abs=1e-3) and hi == pytest.approx(high, abs=1e-3)
+    assert 0.0 <= lo <= k / n <= hi + 1e-12 and hi <= 1.0  # k = n gives 1 − 1e-16 (rounding)
+
+
+@pytest.mark.parametrize("k, n", [(1, 3), (4, 7), (33, 50), (199, 200)])
+def test_wilson_bounds_solve_the_score_equation(k, n):
+    """Each bound p satisfies (p̂ − p)² = z² p (1 − p) / n, the definition of the score interval."""
+    p_hat = k / n
+    for p in wilson_interval(k, n):
+        assert (p_hat - p) ** 2 == pytest.approx(Z95**2 * p * (1 - p) / n, rel=1e-9, abs=1e-15)
+
+
+def test_wilson_empty_and_symmetry():
+    assert wilson_interval(0, 0) == (0.0, 1.0)
+    lo, hi = wilson_interval(3, 10)
+    lo2, hi2 = wilson_interval(7, 10)
+    assert lo == pytest.approx(1 - hi2) and hi == pytest.approx(1 - lo2)
+    # wider with a larger z, narrower with more trials at the same rate
+    assert wilson_interval(3, 10, z=2.58)[0] < lo
+    assert wilson_interval(30, 100)[1] - wilson_interval(30, 100)[0] < hi - lo
+
+
+def test_rate_dict_round_trip_and_text():
+    r = Rate(5, 10)
+    d = r.to_dict()
+    assert d == {"k": 5, "n": 10, "rate": 0.5, "low": round(r.interval[0], 6), "high": round(r.interval[1], 6)}
+    assert Rate.from_dict(json.loads(json.dumps(d))) == r
+    assert str(r) == "50.0 % [23.7, 76.3] (5/10)"
+    empty = Rate(0, 0).to_dict()
+    assert empty["rate"] is None and (empty["low"], empty["high"]) == (0.0, 1.0)
+    assert math.isnan(Rate(0, 0).value)
+
+
+def _attempt(success, reason=None, rejected=None):
+    return {"success": success, "reason": None if success else reason, "rejected": rejected or {}}
+
+
+SINGLE = [
+    {"index": 0, "protocol": "single_object", "objects": ["cuboid"], "placed": 1, "removed": 1,
+     "attempts": [_attempt(True, rejected={"width": 2, "collision": 1})]},
+    {"index": 1, "protocol": "single_object", "objects": ["cuboid"], "placed": 1, "removed": 0,
+     "attempts": [_attempt(False, "missed", {"collision": 4})]},
+    {"index": 2, "protocol": "single_object", "objects": ["sphere"], "placed": 1, "removed": 1,
+     "attempts": [_attempt(True)]},
+    {"index": 3, "protocol": "single_object", "objects": ["sphere"], "placed": 1, "removed": 1,
+     "attempts": [_attempt(True, rejected={"ik": 3})]},
+    {"index": 4, "protocol": "single_object", "objects": ["ring"], "placed": 1, "removed": 0,
+     "attempts": [_attempt(False, "no_candidate", {"enclosure": 5})]},
+]  # fmt: skip
+RUN_SINGLE = {"task": "t", "protocol": "single_object", "detector": "oracle", "seed": 3}
+
+
+def test_summarise_single_object():
+    s = summarise(SINGLE, RUN_SINGLE)
+    assert {k: s[k] for k in RUN_SINGLE} == RUN_SINGLE
+    assert s["trials"] == 5 and s["attempts"] == 5
+    assert set(s["rates"]) == {"success"}
+    assert s["rates"]["success"] == Rate(3, 5).to_dict()
+    assert list(s["failures"]) == list(FAILURE_REASONS)
+    assert s["failures"] == {**dict.fromkeys(FAILURE_REASONS, 0), "missed": 1, "no_candidate": 1}
+    assert list(s["per_object"]) == ["cuboid", "ring", "sphere"]  # sorted by name
+    assert s["per_object"]["cuboid"] == Rate(1, 2).to_dict()
+    assert s["per_object"]["sphere"] == Rate(2, 2).to_dict()
+    assert s["per_object"]["ring"] == Rate(0, 1).to_dict()
+    assert s["selector_rejections"] == {"width": 2, "collision": 5, "enclosure": 5, "ik": 3}
+    assert list(s["selector_rejections"]) == list(REJECTIONS)
+    json.dumps(s)  # plain JSON data
+
+
+MULTI = [
+    {"index": 0, "protocol": "multi_object", "objects": ["cuboid", "ring", "stick"], "placed": 3, "removed": 3,
+     "attempts": [_attempt(True), _attempt(False, "dropped_lift"), _attempt(True), _attempt(True)]},
+    {"index": 1, "protocol": "multi_object", "objects": ["sphere", "cylinder", "ring"], "placed": 3, "removed": 1,
+     "attempts": [_attempt(True), _attempt(False, "collision"), _attempt(False, "collision"),
+                  _attempt(False, "unreachable", {"ik": 7})]},
+    {"index": 2, "protocol": "multi_object", "objects": ["stick", "cuboid", "cylinder"], "placed": 2, "removed": 2,
+     "attempts": [_attempt(True), _attempt(True)]},
+]  # fmt: skip
+
+
+def test_summarise_multi_object():
+    s = summarise(MULTI, {"task": "m", "protocol": "multi_object", "detector": "random", "seed": 0})
+    assert s["trials"] == 3 and s["attempts"] == 10
+    assert s["rates"]["success"] == Rate(6, 10).to_dict()
+    assert s["rates"]["clear"] == Rate(6, 8).to_dict()  # removed / placed
+    assert s["rates"]["scenes_cleared"] == Rate(2, 3).to_dict()
+    assert s["failures"] == {**dict.fromkeys(FAILURE_REASONS, 0), "dropped_lift": 1, "collision": 2,
+                             "unreachable": 1}  # fmt: skip
+    assert s["per_object"] == {}
+    assert s["selector_rejections"]["ik"] == 7
+
+
+@pytest.mark.parametrize("records, protocol", [(SINGLE, "single_object"), (MULTI, "multi_object")])
+def test_summary_does_not_depend_on_record_order(records, protocol):
+    run = {"task": "x", "protocol": protocol, "detector": "oracle", "seed": 1}
+    expected = json.dumps(summarise(records, run))
+    shuffled = list(records)
+    for seed in range(4):
+        random.Random(seed).shuffle(shuffled)
+        assert json.dumps(summarise(shuffled, run)) == expected
+        assert summary_markdown(summarise(shuffled, run)) == summary_markdown(json.loads(expected))
+
+
+def test_summary_markdown_lists_rates_objects_and_failures():
+    s = summarise(SINGLE, RUN_SINGLE)
+    md = summary_markdown(s)
+    assert md.startswith("# t: oracle (single_object, seed 3)\n")
+    assert "5 trials, 5 attempts." in md
+    assert "| success | 60.0 % [23.1, 88.2] | 3 / 5 |" in md
+    assert "| cuboid | 50.0 % [9.5, 90.5] | 1 / 2 |" in md
+    assert "| missed | 1 |" in md and "| collision | 5 |" in md
