@@ -142,7 +142,7 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
     if detector not in DETECTORS:
         raise ValueError(f"unknown detector {detector!r}; known: {', '.join(sorted(DETECTORS))}")
     out = Path(out)
-    identity = run_identity(task, detector)
+    identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
     _prepare(out, identity)
     trials_path = out / "trials.jsonl"
     records = read_trials(trials_path)

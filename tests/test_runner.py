@@ -1,0 +1,208 @@
+"""The benchmark runner end to end on real trials: output files, resume after a kill, worker-count independence,
+refusal of a foreign run folder, a clearance scene, and `kgn-bench run`."""
+
+import json
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from kgn_bench.bench.runner import RunError, read_trials, run_benchmark
+from kgn_bench.bench.stats import summarise, summary_markdown
+from kgn_bench.bench.trial import TIMING_KEYS
+from kgn_bench.cli import main
+from kgn_bench.config import load_task
+
+TASKS = Path(__file__).resolve().parents[1] / "tasks"
+
+
+@pytest.fixture(scope="module")
+def task():
+    """ci_oracle with two objects: two single-object trials (indices 0 = cuboid, 1 = sphere)."""
+    return replace(load_task(TASKS / "ci_oracle.toml"), objects=("cuboid", "sphere"))
+
+
+@pytest.fixture(scope="module")
+def first_run(task, tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "base"
+    result = run_benchmark(task, "oracle", out, workers=1, progress=False)
+    return out, result
+
+
+def _records(out):
+    return sorted(
+        ({k: v for k, v in r.items() if k != "timing"} for r in read_trials(out / "trials.jsonl")),
+        key=lambda r: r["index"],
+    )
+
+
+def _copy(src, tmp_path):
+    dst = tmp_path / "copy"
+    shutil.copytree(src, dst)
+    return dst
+
+
+def test_run_writes_trials_and_summaries(task, first_run):
+    out, result = first_run
+    assert result.ran == 2
+    for name in ("run.json", "trials.jsonl", "summary.json", "summary.md", "timing.json"):
+        assert (out / name).is_file(), name
+    lines = (out / "trials.jsonl").read_text().splitlines()
+    assert len(lines) == 2
+    records = [json.loads(line) for line in lines]
+    assert sorted(r["index"] for r in records) == [0, 1]
+    by_index = {r["index"]: r for r in records}
+    assert by_index[0]["objects"] == ["cuboid"] and by_index[1]["objects"] == ["sphere"]
+    for r in records:
+        assert r["protocol"] == "single_object" and r["placed"] == 1
+        assert len(r["attempts"]) == 1  # single_object: one attempt
+        a = r["attempts"][0]
+        assert a["candidates"] > 0 and a["selected"] is not None  # the oracle always offers a reachable grasp
+        assert r["removed"] == int(a["success"])
+        assert set(r["timing"]) == set(TIMING_KEYS)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary == result.summary
+    assert {k: summary[k] for k in ("task", "protocol", "detector", "seed")} == {
+        "task": "ci_oracle", "protocol": "single_object", "detector": "oracle", "seed": 0}  # fmt: skip
+    assert summary["trials"] == 2 and summary["attempts"] == 2
+    assert summary == summarise(records, {k: summary[k] for k in ("task", "protocol", "detector", "seed")})
+    assert summary["rates"]["success"]["k"] >= 1  # the oracle picks up at least one of a box and a ball
+    assert set(summary["per_object"]) == {"cuboid", "sphere"}
+    assert (out / "summary.md").read_text() == summary_markdown(summary)
+    timing = json.loads((out / "timing.json").read_text())
+    assert timing["trials_run"] == 2 and timing["workers"] == 1 and timing["wall_s"] > 0
+    assert set(timing["per_trial_s"]) == set(TIMING_KEYS) and timing["simulated_s_per_trial"] > 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["trials"] == task.n_trials == 2 and run["seed"] == 0 and run["detector"] == "oracle"
+
+
+def test_rerun_resumes_without_duplicating(first_run, task, tmp_path):
+    out = _copy(first_run[0], tmp_path)
+    before = (out / "trials.jsonl").read_text()
+    result = run_benchmark(task, "oracle", out, workers=1, progress=False)
+    assert result.ran == 0
+    assert (out / "trials.jsonl").read_text() == before
+    assert result.summary == first_run[1].summary
+    assert json.loads((out / "summary.json").read_text()) == first_run[1].summary
+
+
+def test_a_trial_cut_short_by_a_kill_is_rerun(first_run, task, tmp_path):
+    out = _copy(first_run[0], tmp_path)
+    lines = (out / "trials.jsonl").read_text().splitlines(keepends=True)
+    killed_index = json.loads(lines[-1])["index"]
+    (out / "trials.jsonl").write_text(lines[0] + lines[1][: len(lines[1]) // 2])  # killed mid-write
+    for name in ("summary.json", "summary.md", "timing.json"):
+        (out / name).unlink()
+    result = run_benchmark(task, "oracle", out, workers=1, progress=False)
+    assert result.ran == 1
+    records = read_trials(out / "trials.jsonl")
+    assert [r["index"] for r in records] == [json.loads(lines[0])["index"], killed_index]
+    assert (out / "summary.json").read_text() == (first_run[0] / "summary.json").read_text()
+    assert _records(out) == _records(first_run[0])
+
+
+def test_read_trials_drops_a_cut_short_last_line(first_run, tmp_path):
+    path = tmp_path / "trials.jsonl"
+    lines = (first_run[0] / "trials.jsonl").read_text().splitlines(keepends=True)
+    path.write_text(lines[0] + lines[1][:40])
+    records = read_trials(path)
+    assert [r["index"] for r in records] == [json.loads(lines[0])["index"]]
+    assert path.read_text() == lines[0]  # the partial line is removed from the file
+    # a complete last line without its newline is also treated as cut short (it may be incomplete JSON)
+    path.write_text(lines[0] + lines[1].rstrip("\n"))
+    assert len(read_trials(path)) == 1 and path.read_text() == lines[0]
+    # a duplicate (a trial finished twice) counts once; a bad line in the middle is corruption
+    path.write_text(lines[0] + lines[1] + lines[0])
+    assert sorted(r["index"] for r in read_trials(path)) == [0, 1]
+    path.write_text(lines[0] + "{oops\n" + lines[1])
+    with pytest.raises(RunError, match="line 2"):
+        read_trials(path)
+    assert read_trials(tmp_path / "missing.jsonl") == []
+
+
+def test_two_workers_give_the_same_results(first_run, task, tmp_path):
+    out = tmp_path / "w2"
+    result = run_benchmark(task, "oracle", out, workers=2, progress=False)
+    assert result.ran == 2 and result.timing["workers"] == 2
+    assert (out / "summary.json").read_text() == (first_run[0] / "summary.json").read_text()
+    assert _records(out) == _records(first_run[0])
+
+
+def test_a_folder_holding_another_run_is_refused(first_run, task, tmp_path):
+    out = _copy(first_run[0], tmp_path)
+    before = (out / "trials.jsonl").read_text()
+    with pytest.raises(RunError, match=r"holds another run \(different .*seed"):
+        run_benchmark(task.with_overrides(seed=1), "oracle", out, progress=False)
+    with pytest.raises(RunError, match="detector"):
+        run_benchmark(task, "random", out, progress=False)
+    assert (out / "trials.jsonl").read_text() == before  # nothing touched
+    junk = tmp_path / "junk"
+    junk.mkdir()
+    (junk / "notes.txt").write_text("mine")
+    with pytest.raises(RunError, match="not empty"):
+        run_benchmark(task, "oracle", junk, progress=False)
+    (out / "run.json").write_text("{")
+    with pytest.raises(RunError, match="corrupt"):
+        run_benchmark(task, "oracle", out, progress=False)
+
+
+def test_bad_arguments(task, tmp_path):
+    with pytest.raises(ValueError, match="unknown detector 'nope'"):
+        run_benchmark(task, "nope", tmp_path / "a", progress=False)
+    with pytest.raises(ValueError, match="workers"):
+        run_benchmark(task, "oracle", tmp_path / "b", workers=0, progress=False)
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_clearance_scene(tmp_path):
+    task = replace(load_task(TASKS / "multi_object.toml"), objects_per_scene=2, trials=1)
+    result = run_benchmark(task, "oracle", tmp_path / "multi", progress=False)
+    (record,) = read_trials(tmp_path / "multi" / "trials.jsonl")
+    assert record["protocol"] == "multi_object" and len(record["objects"]) == 2
+    assert set(record["objects"]) <= set(task.objects)
+    assert record["placed"] == 2
+    attempts = record["attempts"]
+    assert 1 <= len(attempts) <= task.execution.max_attempts_per_object * 2
+    assert record["removed"] == sum(a["success"] for a in attempts) <= 2
+    picked = [a["object"] for a in attempts if a["success"]]
+    assert len(set(picked)) == len(picked)  # an object removed is not picked again
+    # it stops when the table is clear or after max_consecutive_failures failures in a row
+    failures_at_end = len(attempts) - max([i + 1 for i, a in enumerate(attempts) if a["success"]], default=0)
+    assert record["removed"] == 2 or failures_at_end == task.execution.max_consecutive_failures
+    rates = result.summary["rates"]
+    assert rates["clear"]["n"] == 2 and rates["clear"]["k"] == record["removed"]
+    assert rates["success"]["n"] == len(attempts) and rates["scenes_cleared"]["n"] == 1
+
+
+def _small_task(tmp_path):
+    p = tmp_path / "tiny.toml"
+    p.write_text('[task]\nname = "tiny"\nprotocol = "single_object"\ntrials = 3\n[objects]\nset = ["cuboid"]\n')
+    return p
+
+
+def test_cli_run(tmp_path, capsys):
+    out = tmp_path / "run"
+    argv = ["run", str(_small_task(tmp_path)), "--detector", "oracle", "--trials", "1", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("# tiny: oracle (single_object, seed 0)")
+    assert "| success |" in printed and "1 trials in" in printed and f"wrote {out}/summary.json" in printed
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["trials"] == 1 and summary["per_object"].keys() == {"cuboid"}  # --trials overrode 3
+
+
+def test_cli_run_errors(tmp_path, capsys):
+    task = _small_task(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", str(task), "--detector", "nope", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("kgn-bench: error:") and "unknown detector 'nope'" in err and err.count("\n") == 1
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[task]\nname = 'x'\nprotocol = 'single_object'\ntrials = 'many'\n")
+    assert main(["run", str(bad), "--detector", "oracle", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "trials must be int" in err
+    assert main(["run", str(tmp_path / "none.toml"), "--detector", "oracle", "--quiet"]) == 2
+    assert "no such task file" in capsys.readouterr().err
+    assert not out.exists()
