@@ -7,7 +7,7 @@ out-of-range values and unknown object names are errors (``ConfigError``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -87,13 +87,9 @@ class TaskConfig:
         return self.trials * len(self.objects) if self.protocol == "single_object" else self.trials
 
     def with_overrides(self, trials: int | None = None, seed: int | None = None) -> TaskConfig:
-        from dataclasses import replace
-
         return replace(self, trials=self.trials if trials is None else trials, seed=self.seed if seed is None else seed)
 
     def to_dict(self) -> dict[str, Any]:
-        from dataclasses import asdict
-
         return asdict(self)
 
 
@@ -109,8 +105,11 @@ def _coerce(where: str, key: str, value: Any, default: Any) -> Any:
     elif isinstance(default, str):
         ok = isinstance(value, str)
     elif isinstance(default, tuple):
-        ok = isinstance(value, list)
-        value = tuple(float(v) if isinstance(default[0], float) else v for v in value) if ok else value
+        ok = (isinstance(value, list) and len(value) == len(default)
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
+        if not ok:
+            raise ConfigError(f"{where}: {key} must be a list of {len(default)} numbers, got {value!r}")
+        value = tuple(float(v) for v in value)
     else:
         ok = True
     if not ok:
@@ -139,9 +138,11 @@ def load_task(path: str | Path) -> TaskConfig:
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML ({e})") from None
     sections = {"task", "objects", "camera", "selector", "execution"}
-    for name in raw:
+    for name, value in raw.items():
         if name not in sections:
             raise ConfigError(f"{path}: unknown section [{name}] (known: {', '.join(sorted(sections))})")
+        if not isinstance(value, dict):
+            raise ConfigError(f"{path}: {name} must be a [{name}] table, got {value!r}")
     task = dict(raw.get("task", {}))
     for key in ("name", "protocol"):
         if key not in task:
@@ -163,7 +164,7 @@ def load_task(path: str | Path) -> TaskConfig:
     for n in names:
         if n not in PRIMITIVES:
             raise ConfigError(f"{path}: unknown object {n!r} (known: {', '.join(PRIMITIVES)})")
-    if not isinstance(per_scene, int) or per_scene < 1:
+    if not isinstance(per_scene, int) or isinstance(per_scene, bool) or per_scene < 1:
         raise ConfigError(f"{path}: [objects] per_scene must be a positive integer, got {per_scene!r}")
     cfg = TaskConfig(
         name=task["name"], protocol=task["protocol"], seed=task.get("seed", 0), trials=task.get("trials", 10),
@@ -180,6 +181,10 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
     """Range checks shared by files and command-line overrides."""
     if cfg.trials < 1:
         raise ConfigError(f"{where}: trials must be ≥ 1, got {cfg.trials}")
+    if cfg.seed < 0:
+        raise ConfigError(f"{where}: seed must be ≥ 0, got {cfg.seed}")
+    if cfg.selector.point_stride < 1:
+        raise ConfigError(f"{where}: selector.point_stride must be ≥ 1, got {cfg.selector.point_stride}")
     if cfg.selector.score not in SCORES:
         raise ConfigError(f"{where}: selector.score must be one of {', '.join(SCORES)}, got {cfg.selector.score!r}")
     if not 0.3 <= cfg.camera.distance <= 2.0:
