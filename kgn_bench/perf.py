@@ -24,7 +24,6 @@ def perf_data(scenes: int = 20, workers: int = 2, mode: str = "multi", views: in
     with tempfile.TemporaryDirectory(prefix="kgn-perf-") as tmp:
         stats = generate_dataset(config, Path(tmp) / "data", workers=workers, progress=False)
     per_view = {k: 1e3 * stats.timings[k] / stats.views for k in TIMING_KEYS}
-    total = sum(per_view.values())
     lines = [
         f"data generation: mode {mode}, {scenes} scenes x {views} views, {workers} worker(s), "
         f"{os.cpu_count()} cores, {platform.processor() or platform.machine()}",
@@ -32,13 +31,16 @@ def perf_data(scenes: int = 20, workers: int = 2, mode: str = "multi", views: in
         f"views/s (wall, incl. worker start-up): {stats.views_per_second:.1f}",
         f"wall: {stats.wall:.1f} s for {stats.views} views",
         "",
-        "| stage | ms per view | share |",
-        "| --- | ---: | ---: |",
     ]
-    for k in TIMING_KEYS:
-        lines.append(f"| {k} | {per_view[k]:.1f} | {100 * per_view[k] / total:.0f} % |")
-    lines.append(f"| total (worker time) | {total:.1f} | 100 % |")
-    return "\n".join(lines)
+    return "\n".join(lines + _stage_table(per_view, "view"))
+
+
+def _stage_table(ms: dict[str, float], per: str) -> list[str]:
+    """Markdown rows: each stage's milliseconds per item and its share of the total."""
+    total = sum(ms.values())
+    rows = [f"| stage | ms per {per} | share |", "| --- | ---: | ---: |"]
+    rows += [f"| {k} | {v:.1f} | {100 * v / total:.0f} % |" for k, v in ms.items()]
+    return [*rows, f"| total (worker time) | {total:.1f} | 100 % |"]
 
 
 def perf_run(task_path: str | Path, detector: str = "oracle", trials: int = 2, workers: int = 2) -> str:
@@ -46,15 +48,12 @@ def perf_run(task_path: str | Path, detector: str = "oracle", trials: int = 2, w
     per-trial split (setup = scene build + placement, render, detect, select, simulate = motion physics
     and IK). Stages are per-trial worker seconds; with W workers throughput ≈ W / (sum of stages)."""
     from kgn_bench.bench.runner import run_benchmark
-    from kgn_bench.bench.trial import TIMING_KEYS as RUN_KEYS
     from kgn_bench.config import load_task
 
     task = load_task(task_path).with_overrides(trials=trials)
     with tempfile.TemporaryDirectory(prefix="kgn-perf-") as tmp:
         result = run_benchmark(task, detector, Path(tmp) / "run", workers=workers, progress=False)
     t = result.timing
-    per = t["per_trial_s"]
-    total = sum(per.values())
     lines = [
         f"benchmark: {task.name} ({task.protocol}), detector {detector}, {task.n_trials} trials, {workers} worker(s), "
         f"{os.cpu_count()} cores",
@@ -62,10 +61,5 @@ def perf_run(task_path: str | Path, detector: str = "oracle", trials: int = 2, w
         f"trials/min (wall, incl. worker start-up): {t['trials_per_minute']}",
         f"wall: {t['wall_s']:.1f} s; simulated motion per trial: {t['simulated_s_per_trial']:.1f} s",
         "",
-        "| stage | ms per trial | share |",
-        "| --- | ---: | ---: |",
     ]
-    for k in RUN_KEYS:
-        lines.append(f"| {k} | {1e3 * per[k]:.0f} | {100 * per[k] / total:.0f} % |")
-    lines.append(f"| total (worker time) | {1e3 * total:.0f} | 100 % |")
-    return "\n".join(lines)
+    return "\n".join(lines + _stage_table({k: 1e3 * v for k, v in t["per_trial_s"].items()}, "trial"))

@@ -69,34 +69,30 @@ def held_object(scene: Scene, executor: Executor) -> int | None:
     return both[0] - 1 if both else None
 
 
-def _collision_monitor(scene: Scene, executor: Executor):
-    robot_geoms = executor.robot.geoms
-    pads = executor.robot.pad_geoms
-    is_robot = np.zeros(scene.model.ngeom, dtype=bool)
-    is_robot[robot_geoms] = True
-    is_pad = np.zeros(scene.model.ngeom, dtype=bool)
-    is_pad[pads] = True
+class _CollisionMonitor:
+    """Before closing: the arm or palm touching anything, or a finger touching the table, bin or floor,
+    is a collision (fingers may touch objects). ``detail`` names the first offending pair."""
 
-    def monitor() -> str | None:
-        pairs = _contact_pairs(scene)
-        if len(pairs) == 0:
-            return None
-        r0, r1 = is_robot[pairs[:, 0]], is_robot[pairs[:, 1]]
+    def __init__(self, scene: Scene, executor: Executor) -> None:
+        self.scene = scene
+        self.is_robot = np.zeros(scene.model.ngeom, dtype=bool)
+        self.is_robot[executor.robot.geoms] = True
+        self.is_pad = np.zeros(scene.model.ngeom, dtype=bool)
+        self.is_pad[executor.robot.pad_geoms] = True
+        self.detail = ""
+
+    def __call__(self) -> str | None:
+        pairs = _contact_pairs(self.scene)
+        r0, r1 = self.is_robot[pairs[:, 0]], self.is_robot[pairs[:, 1]]
         mixed = r0 ^ r1
-        if not np.any(mixed):
-            return None
         robot = np.where(r0, pairs[:, 0], pairs[:, 1])[mixed]
         other = np.where(r0, pairs[:, 1], pairs[:, 0])[mixed]
-        # fingers may touch objects; anything else touching anything is a collision
-        bad = ~is_pad[robot] | (scene.geom_label[other] == 0)
-        if not np.any(bad):
+        bad = np.flatnonzero(~self.is_pad[robot] | (self.scene.geom_label[other] == 0))
+        if len(bad) == 0:
             return None
-        m = scene.model
-        k = int(np.flatnonzero(bad)[0])
-        monitor.detail = f"{m.geom(int(robot[k])).name} touched {m.geom(int(other[k])).name}"  # type: ignore[attr-defined]
+        m, k = self.scene.model, bad[0]
+        self.detail = f"{m.geom(int(robot[k])).name} touched {m.geom(int(other[k])).name}"
         return "collision"
-
-    return monitor
 
 
 def _retreat(executor: Executor, sel: Selection, cfg: ExecutionConfig) -> None:
@@ -113,7 +109,7 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
                   park: bool = True) -> AttemptResult:
     """Execute a selected grasp from the park configuration and report the outcome."""
     assert sel.grasp is not None and sel.q_pregrasp is not None
-    monitor = _collision_monitor(scene, executor)
+    monitor = _CollisionMonitor(scene, executor)
     try:
         try:
             executor.set_gripper(sel.width, 0.2)
@@ -122,7 +118,7 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
             executor.wait(0.2, monitor=monitor)
         except MotionAborted as e:
             _retreat(executor, sel, cfg)
-            return AttemptResult(e.reason, detail=f"{getattr(monitor, 'detail', '')} ({e})")
+            return AttemptResult(e.reason, detail=f"{monitor.detail} ({e})")
         executor.set_gripper(0.0, 0.4)
         executor.wait(0.25)
         held = held_object(scene, executor)

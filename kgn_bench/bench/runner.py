@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -209,7 +208,3 @@ def timing_summary(records: list[dict[str, Any]], wall: float, ran: int, workers
         "per_trial_s": {k: round(v, 4) for k, v in per_trial.items()},
         "simulated_s_per_trial": round(sim, 3),
     }
-
-
-def remove_run(out: Path) -> None:
-    shutil.rmtree(out, ignore_errors=True)

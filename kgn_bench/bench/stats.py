@@ -94,22 +94,22 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
     }
 
 
+def _rate_row(name: str, d: dict[str, Any]) -> str:
+    r = Rate.from_dict(d)
+    lo, hi = r.interval
+    return f"| {name} | {100 * r.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {r.k} / {r.n} |"
+
+
 def summary_markdown(summary: dict[str, Any]) -> str:
     """A human-readable Markdown table of a summary."""
     lines = [f"# {summary.get('task', 'run')}: {summary.get('detector', '?')} "
              f"({summary.get('protocol', '?')}, seed {summary.get('seed', '?')})", "",
              f"{summary['trials']} trials, {summary['attempts']} attempts.", "",
              "| rate | value [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
-    for name, d in summary["rates"].items():
-        r = Rate.from_dict(d)
-        lo, hi = r.interval
-        lines.append(f"| {name} | {100 * r.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {r.k} / {r.n} |")
+    lines += [_rate_row(name, d) for name, d in summary["rates"].items()]
     if summary["per_object"]:
         lines += ["", "| object | success [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
-        for name, d in summary["per_object"].items():
-            r = Rate.from_dict(d)
-            lo, hi = r.interval
-            lines.append(f"| {name} | {100 * r.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {r.k} / {r.n} |")
+        lines += [_rate_row(name, d) for name, d in summary["per_object"].items()]
     lines += ["", "| failure reason | attempts |", "| --- | --- |"]
     lines += [f"| {k} | {v} |" for k, v in summary["failures"].items()]
     lines += ["", "| selector rejections (candidates) | count |", "| --- | --- |"]

@@ -11,8 +11,8 @@ between runs.
 
 from __future__ import annotations
 
+import itertools
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -70,22 +70,25 @@ class _Clock:
         return now
 
 
-def _build_scene(task: TaskConfig, index: int, ik: IK, on_tick: Callable[[], None] | None):
+SCENE_TRIES = 5
+
+
+def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]:
+    """The trial's work cell with its objects placed and settled, the arm parked (retried on a blow-up)."""
     rng = np.random.default_rng([task.seed, index])
-    for attempt in range(5):
-        objects = trial_objects(task, index, rng)
-        scene = Scene(objects, extend=add_workcell)
+    for attempt in range(SCENE_TRIES):
+        scene = Scene(trial_objects(task, index, rng), extend=add_workcell)
         executor = Executor(scene, ik)
         executor.reset(PARK_Q)
         try:
             place_objects(scene, rng, PlacementConfig())
             settle(scene, PlacementConfig())
-            executor.on_tick = on_tick
-            return scene, executor
         except PhysicsError:
-            if attempt == 4:
+            if attempt == SCENE_TRIES - 1:
                 raise
-    raise AssertionError("unreachable")
+            continue
+        return scene, executor
+    raise PhysicsError(f"trial {index}: no stable scene")
 
 
 def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: Path | None = None) -> dict[str, Any]:
@@ -93,22 +96,20 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     clock = _Clock()
     t = time.perf_counter()
     recorder = None
-    state = {"ticks": 0}
-    scene_ref: dict[str, Scene] = {}
-
-    def on_tick() -> None:
-        state["ticks"] += 1
-        if recorder is not None and state["ticks"] % RECORD_EVERY == 0:
-            recorder.log_state(scene_ref["scene"].model, scene_ref["scene"].data)
-
-    scene, executor = _build_scene(task, index, ik, on_tick)
-    scene_ref["scene"] = scene
+    scene, executor = _build_scene(task, index, ik)
     if record is not None:
         from kgn_bench.viz.recording import Recorder
 
         recorder = Recorder(record, f"{task.name}/trial_{index:05d}")
         recorder.log_geometry(scene.model)
         recorder.log_state(scene.model, scene.data)
+        ticks = itertools.count(1)
+
+        def on_tick() -> None:
+            if next(ticks) % RECORD_EVERY == 0:
+                recorder.log_state(scene.model, scene.data)
+
+        executor.on_tick = on_tick
     detector.reset([task.seed, index])
     if detector.privileged:
         detector.attach(scene)  # type: ignore[attr-defined]

@@ -49,9 +49,9 @@ class Observation:
 
     def points_world(self, stride: int = 1) -> np.ndarray:
         """Valid depth pixels back-projected to the world frame, (N, 3), every ``stride``-th pixel."""
-        pts = backproject(self.depth, self.intrinsics.K)[::stride, ::stride]
-        pts = pts[self.depth[::stride, ::stride] > 0]
-        return transform_points(self.camera_pose, pts)
+        depth = self.depth[::stride, ::stride]
+        K = np.diag([1.0 / stride, 1.0 / stride, 1.0]) @ self.intrinsics.K  # pixel u' of the strided image = u / s
+        return transform_points(self.camera_pose, backproject(depth, K)[depth > 0])
 
 
 @dataclass(frozen=True)

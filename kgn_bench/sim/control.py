@@ -203,26 +203,25 @@ class Executor:
             self._tick(monitor)
 
     def move_linear(self, T_goal: np.ndarray, duration: float, monitor: Monitor | None = None) -> float:
-        """Straight-line TCP move from the commanded pose to ``T_goal``; returns the largest distance (m)
-        between the commanded path and the IK reference's TCP (the tracking error of the IK itself)."""
+        """Straight-line TCP move from the commanded pose to ``T_goal``; returns the distance (m) left between
+        the IK reference's TCP and the goal at the end (the error of the IK itself, not of the servos)."""
         T0 = self.ik.tcp_pose(self.q_ref)
         R0, p0 = T0[:3, :3], T0[:3, 3]
         axis_angle = rotvec_from_matrix(R0.T @ T_goal[:3, :3])
         n = max(1, round(duration / CONTROL_DT))
-        worst = 0.0
         for k in range(1, n + 1):
             s = min_jerk(k / n)
             R = R0 @ matrix_from_rotvec(s * axis_angle)
             target = make_pose(R, p0 + s * (T_goal[:3, 3] - p0))
             self.q_ref = self.ik.step(self.q_ref, target)
             self._tick(monitor)
+        err = float("inf")
         for _ in range(20):  # settle the reference onto the goal
             self.q_ref = self.ik.step(self.q_ref, T_goal)
-            err = np.linalg.norm(self.ik.tcp_pose(self.q_ref)[:3, 3] - T_goal[:3, 3])
+            err = float(np.linalg.norm(self.ik.tcp_pose(self.q_ref)[:3, 3] - T_goal[:3, 3]))
             if err < 1e-3:
                 break
-        worst = max(worst, float(np.linalg.norm(self.ik.tcp_pose(self.q_ref)[:3, 3] - T_goal[:3, 3])))
-        return worst
+        return err
 
     def set_gripper(self, opening: float, duration: float, monitor: Monitor | None = None) -> None:
         """Ramp the jaw reference to ``opening`` (m) over ``duration``; the servo's force limit caps the
