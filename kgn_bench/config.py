@@ -41,15 +41,21 @@ class CameraConfig:
 @dataclass(frozen=True)
 class SelectorConfig:
     """Grasp selection (DESIGN §7). ``score``: ``confidence_minus_error`` = c − λ·RE (the default) or
-    ``paper_literal`` = c + RE (the paper's printed formula, kept as an ablation)."""
+    ``paper_literal`` = c + RE (the paper's printed formula, kept as an ablation). A candidate closer than
+    ``retry_distance`` (m) and ``retry_angle_deg`` (up to the 180° symmetry) to a grasp that already failed
+    in the same trial is not tried again. ``shadow_margin`` (m): how far behind the observed surface a palm
+    or wrist point must lie to count as hidden (the selector's occlusion check)."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.02
-    max_candidates: int = 100
+    max_candidates: int = 1000
     collision_points: int = 3
     enclosed_points: int = 5
     table_clearance: float = 0.003
     point_stride: int = 2
+    shadow_margin: float = 0.01
+    retry_distance: float = 0.02
+    retry_angle_deg: float = 30.0
 
 
 @dataclass(frozen=True)
@@ -183,6 +189,10 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         raise ConfigError(f"{where}: trials must be ≥ 1, got {cfg.trials}")
     if cfg.seed < 0:
         raise ConfigError(f"{where}: seed must be ≥ 0, got {cfg.seed}")
+    if cfg.selector.shadow_margin < 0:
+        raise ConfigError(f"{where}: selector.shadow_margin must be ≥ 0, got {cfg.selector.shadow_margin}")
+    if cfg.selector.retry_distance < 0 or not 0 <= cfg.selector.retry_angle_deg <= 180:
+        raise ConfigError(f"{where}: selector.retry_distance must be ≥ 0 and retry_angle_deg in [0, 180]")
     if cfg.selector.point_stride < 1:
         raise ConfigError(f"{where}: selector.point_stride must be ≥ 1, got {cfg.selector.point_stride}")
     if cfg.selector.score not in SCORES:

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from kgn_bench.detectors import DETECTORS, Candidates, Detector, DetectorError, Observation, make_detector
-from kgn_bench.detectors.oracle import OracleDetector, on_table
+from kgn_bench.detectors.oracle import TILT_DEG, OracleDetector, on_table, tilted
 from kgn_bench.detectors.random import RandomDetector
 from kgn_bench.geometry import make_pose, rot_z
 from kgn_bench.shapes.base import EVAL_DENSITY
@@ -124,14 +124,21 @@ def test_oracle_returns_the_free_ground_truth_grasps(cell):
     world = cands.world_poses(obs.camera_pose)
     T = scene.object_pose(0)
     np.testing.assert_allclose(T, BOX_POSE, atol=1e-9)
-    gt = BOX.grasps(EVAL_DENSITY).transformed(T)
+    family = BOX.grasps(EVAL_DENSITY)
+    gt = tilted(family, (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG))).transformed(T)
     free = ~proxy_hits_table(gt.poses, gt.widths)  # alone on the table, only the table can collide
-    assert 0 < len(cands) == free.sum() < len(gt)
-    # every candidate is one of the box's ground-truth grasps (same pose and width), each at most once
+    assert 0 < len(cands) == free.sum() < len(gt) == 3 * len(family)
+    # every candidate is one of the box's ground-truth grasps or their tilts (same pose and width), once each
     d = np.linalg.norm((world[:, None] - gt.poses[None]).reshape(len(world), len(gt), 16), axis=2)
     match = d.argmin(axis=1)
     assert np.all(d.min(axis=1) < 1e-9) and len(set(match.tolist())) == len(world)
     assert np.all(free[match])
+    # the tilted copies keep the fingertip midpoint and the closing axis of their family grasp
+    n = len(family)
+    np.testing.assert_allclose(gt.poses[n:2 * n, :3, 3], gt.poses[:n, :3, 3], atol=1e-12)
+    np.testing.assert_allclose(gt.poses[n:2 * n, :3, 2], gt.poses[:n, :3, 2], atol=1e-12)
+    cos = np.einsum("ni,ni->n", gt.poses[n:2 * n, :3, 0], gt.poses[:n, :3, 0])
+    np.testing.assert_allclose(cos, np.cos(np.deg2rad(TILT_DEG)), atol=1e-12)
     np.testing.assert_allclose(cands.widths, gt.widths[match])
     # positions on the box, none of the sphere's
     half_diagonal = np.linalg.norm(BOX.size) / 2.0

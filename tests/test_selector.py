@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from kgn_bench.bench.selector import REJECTIONS, score_candidates, select_grasp
+from kgn_bench.bench.selector import REJECTIONS, DepthView, near_failed, score_candidates, select_grasp
 from kgn_bench.config import ExecutionConfig, SelectorConfig
 from kgn_bench.geometry import make_pose, rot_z
 from kgn_bench.gripper import GRIPPER
@@ -121,7 +121,7 @@ def test_rejections_accumulate_until_a_feasible_candidate(points, ik):
     widths = [0.3, 0.02, 0.06, 0.06, 0.06, 0.06, 0.06]
     sel = _select(poses, widths, points, ik)
     assert sel.index == 5
-    assert sel.rejected == {"width": 1, "collision": 2, "enclosure": 1, "ik": 1}
+    assert sel.rejected == {"repeat": 0, "width": 1, "collision": 2, "occluded": 0, "enclosure": 1, "ik": 1}
     np.testing.assert_allclose(np.abs(sel.grasp[:3, 2]), [1.0, 0.0, 0.0], atol=1e-12)
     # max_candidates cuts the list: the good ones are never looked at
     cut = _select(poses, widths, points, ik, cfg=replace(CFG, max_candidates=5))
@@ -155,3 +155,64 @@ def test_widths_up_to_the_maximum_opening_pass(points, ik):
     sel = _select([_pose((0.0, 0.0, 0.02))], [GRIPPER.max_width], points, ik)
     assert sel.rejected["width"] == 0
     assert sel.width == pytest.approx(GRIPPER.max_width)  # capped, not max_width + 1 cm
+
+
+def test_a_grasp_that_failed_is_not_tried_again(points, ik):
+    good, twin, other = _pose((0.0, 0.0, 0.02)), _pose((0.0, 0.0, 0.02), np.pi), _pose((0.0, 0.0, 0.02), np.pi / 2)
+    first = _select([good, other], [0.06, 0.06], points, ik)
+    assert first.index == 0
+    failed = first.grasp[None]  # as executed: flipped form possible, pushed grasp_depth down
+    n = 3
+    sel = select_grasp(np.stack([good, twin, other]), np.full(n, 0.06), np.linspace(1.0, 0.5, n), np.full(n, np.nan),
+                       points, ik, CFG, EXEC, failed)
+    # the same grasp and its 180° twin are skipped; the grasp turned 90° is a different grasp
+    assert sel.index == 2 and sel.rejected["repeat"] == 2
+    # with the memory switched off, the failed grasp is chosen again
+    off = replace(CFG, retry_distance=0.0)
+    again = select_grasp(np.stack([good, twin, other]), np.full(n, 0.06), np.linspace(1.0, 0.5, n),
+                         np.full(n, np.nan), points, ik, off, EXEC, failed)
+    assert again.index == 0 and again.rejected["repeat"] == 0
+
+
+def test_near_failed_compares_translation_and_rotation():
+    base = _pose((0.0, 0.0, 0.02))
+    shifted = _pose((0.0, 0.025, 0.02))
+    tilted = _pose((0.0, 0.0, 0.02), np.deg2rad(35.0))
+    close = _pose((0.005, 0.0, 0.02), np.deg2rad(10.0))
+    got = near_failed(np.stack([base, shifted, tilted, close]), base[None], 0.02, np.deg2rad(30.0))
+    assert got.tolist() == [True, False, False, True]
+    assert near_failed(np.stack([base]), np.zeros((0, 4, 4)), 0.02, 1.0).tolist() == [False]
+
+
+# a camera 1 m above the table centre looking straight down (OpenCV axes: x = world x, y = world −y)
+DOWN_CAM = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 0], [0, 0, -1.0, 1.0], [0, 0, 0, 1.0]])
+K = np.array([[500.0, 0, 320.0], [0, 500.0, 240.0], [0, 0, 1.0]])
+
+
+def test_depth_view_hidden_points():
+    depth = np.full((480, 640), 0.6, np.float32)  # a surface at world z = 0.4 everywhere
+    depth[:, :100] = 0.0  # no return on the left strip
+    view = DepthView(depth, K, DOWN_CAM)
+    pts = np.array([
+        [0.0, 0.0, 0.30],  # 0.7 m from the camera, 0.1 m behind the surface: hidden
+        [0.0, 0.0, 0.395],  # 5 mm behind: within the margin
+        [0.0, 0.0, 0.50],  # in front of the surface
+        [-0.5, 0.0, 0.30],  # projects onto the no-return strip
+        [3.0, 0.0, 0.30],  # outside the image
+        [0.0, 0.0, 1.50],  # behind the camera
+    ])
+    assert view.hidden(pts, 0.01).tolist() == [True, False, False, False, False, False]
+
+
+def test_palm_in_unseen_space_is_rejected(points, ik):
+    good = _pose((0.0, 0.0, 0.02))
+    n = 1
+    args = (np.stack([good]), np.full(n, 0.06), np.ones(n), np.full(n, np.nan), points, ik, CFG, EXEC, None)
+    assert select_grasp(*args, None).index == 0
+    # the same grasp when the camera saw a surface 10 cm above the table: everything below it is unseen
+    hidden = DepthView(np.full((480, 640), 0.9, np.float32), K, DOWN_CAM)
+    sel = select_grasp(*args, hidden)
+    assert sel.index is None and sel.rejected["occluded"] == 1
+    # a surface at the table top hides nothing the gripper occupies
+    seen = DepthView(np.full((480, 640), 1.0, np.float32), K, DOWN_CAM)
+    assert select_grasp(*args, seen).index == 0

@@ -3,7 +3,9 @@ release; the outcome and its failure reason.
 
 Failure reasons (DESIGN §7): ``collision`` (before closing, the arm or palm touched anything, or a finger
 touched the table, bin or floor), ``missed`` (no object between both fingers after closing),
-``dropped_lift`` (held after closing but not held ``min_lift`` higher after the lift),
+``dropped_lift`` (held after closing but, after the lift, no longer held or the object point that was at
+the TCP when the jaws closed rose less than ``min_lift``: slip at the grasp, while an object that only
+swings about the grasp point still counts as lifted),
 ``dropped_transport`` (lost on the way or released outside the bin), ``physics_error``. Success: the
 object is inside the bin after release. All poses are world frame.
 """
@@ -112,13 +114,17 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
     monitor = _CollisionMonitor(scene, executor)
     try:
         try:
+            phase = "opening"
             executor.set_gripper(sel.width, 0.2)
+            phase = "moving to pre-grasp"
             executor.move_joints(sel.q_pregrasp, monitor=monitor)
+            phase = "approaching"
             executor.move_linear(sel.grasp, cfg.approach_time, monitor=monitor)
+            phase = "settling before closing"
             executor.wait(0.2, monitor=monitor)
         except MotionAborted as e:
             _retreat(executor, sel, cfg)
-            return AttemptResult(e.reason, detail=f"{monitor.detail} ({e})")
+            return AttemptResult(e.reason, detail=f"{monitor.detail} while {phase} ({e})")
         executor.set_gripper(0.0, 0.4)
         executor.wait(0.25)
         held = held_object(scene, executor)
@@ -126,17 +132,19 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
             detail = f"jaws closed to {executor.robot.opening(scene.data) * 1e3:.1f} mm"
             _retreat(executor, sel, cfg)
             return AttemptResult("missed", detail=detail)
-        z0 = scene.object_pose(held)[2, 3]
+        T0 = scene.object_pose(held)
+        grip_point = np.linalg.solve(T0, np.append(scene.data.site_xpos[executor.robot.tcp_site], 1.0))
         lift = executor.ik.tcp_pose(executor.q_ref)
         lift[2, 3] += cfg.lift_height
         executor.move_linear(lift, 0.8)
         executor.wait(cfg.settle_time)
-        rise = scene.object_pose(held)[2, 3] - z0
+        T1 = scene.object_pose(held)
+        rise = float((T1 @ grip_point)[2] - (T0 @ grip_point)[2])
         if held_object(scene, executor) != held or rise < cfg.min_lift:
             executor.set_gripper(GRIPPER.max_width, 0.2)
             if park:
                 executor.move_joints(PARK_Q)
-            return AttemptResult("dropped_lift", held, f"object rose {rise * 1e3:.0f} mm")
+            return AttemptResult("dropped_lift", held, f"grasp point rose {rise * 1e3:.0f} mm")
         executor.move_joints(bin_drop_q())
         carried = held_object(scene, executor) == held
         executor.set_gripper(GRIPPER.max_width, 0.3)

@@ -30,7 +30,7 @@ from kgn_bench.sim.robot import PARK_Q, add_workcell
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
 
 from .attempt import AttemptResult, execute_grasp
-from .selector import Selection, select_grasp
+from .selector import DepthView, Selection, select_grasp
 
 __all__ = ["TIMING_KEYS", "camera_pose", "run_trial", "trial_objects"]
 
@@ -120,6 +120,7 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     t = clock.add("setup", t)
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
     consecutive = 0
+    failed: list[np.ndarray] = []  # grasps (world) that failed in this trial
     with SceneRenderer(scene) as renderer:
         while len(attempts) < max_attempts and consecutive < task.execution.max_consecutive_failures:
             if not any(on_table(scene, i) for i in range(len(names))):
@@ -130,8 +131,11 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
             t = clock.add("render", t)
             if recorder is not None:
                 recorder.log_observation(view.rgb, view.depth, scene.intrinsics.K, cam, scene.data.time)
-            attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names)
+            attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
+                                           np.array(failed).reshape(-1, 4, 4))
             attempts.append(attempt)
+            if not attempt["success"] and sel is not None and sel.grasp is not None:
+                failed.append(sel.grasp)
             if recorder is not None:
                 if cands is not None and len(cands):
                     recorder.log_candidates(cands.world_poses(cam), cands.widths, sel.scores, sel.index,
@@ -158,7 +162,8 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
 
 
 def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,
-             clock: _Clock, names: list[str]) -> tuple[dict[str, Any], Selection | None, Candidates | None]:
+             clock: _Clock, names: list[str], failed: np.ndarray
+             ) -> tuple[dict[str, Any], Selection | None, Candidates | None]:
     t = time.perf_counter()
     sim0 = scene.data.time
     cands = sel = None
@@ -171,7 +176,8 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
         t = clock.add("detect", t)
         points = obs.points_world(stride=task.selector.point_stride)
         sel = select_grasp(cands.world_poses(obs.camera_pose), cands.widths, cands.confidences,
-                           cands.reprojection_errors, points, executor.ik, task.selector, task.execution)
+                           cands.reprojection_errors, points, executor.ik, task.selector, task.execution,
+                           failed, DepthView(obs.depth, obs.intrinsics.K, obs.camera_pose))
         t = clock.add("select", t)
         if sel.index is None:
             result = AttemptResult(sel.reason or "no_candidate")

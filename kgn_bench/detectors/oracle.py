@@ -1,8 +1,10 @@
 """The oracle detector: ground-truth grasp families read from the simulator (privileged).
 
 It is the harness's upper bound, not a detector: it sees object types, sizes and poses, which no camera
-gives. For every object still on the table it returns the evaluation-density families (DESIGN §5), minus
-those whose labelling proxy collides (``sim/collision.py``), in the camera frame. Confidence favours
+gives. For every object still on the table it returns the evaluation-density families (DESIGN §5), each
+also tilted by ±``TILT_DEG`` about its closing axis (``G · R_z(±α)``: the fingers stay where they pinch,
+the approach leans along the pinched wall or axis, so a ring standing on edge can be taken from above
+at a slant), minus those whose labelling proxy collides (``sim/collision.py``), in the camera frame. Confidence favours
 top-down approaches (the executor's easiest) near the object's centre (the stablest):
 ``c = ½ (1 − x_grasp · ẑ_world) − 2 m⁻¹ · ‖t_grasp − t_object‖``. There is no reprojection error (NaN).
 """
@@ -11,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kgn_bench.geometry import invert_pose
+from kgn_bench.geometry import invert_pose, make_pose, rot_z
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes.base import EVAL_DENSITY
 from kgn_bench.sim.collision import label_collisions
@@ -19,7 +21,15 @@ from kgn_bench.sim.scene import TABLE_HALF_SIZE, Scene
 
 from .base import Candidates, DetectorError, Observation
 
-__all__ = ["OracleDetector", "on_table"]
+__all__ = ["TILT_DEG", "OracleDetector", "on_table", "tilted"]
+
+TILT_DEG = 30.0
+
+
+def tilted(grasps: GraspSet, angles: tuple[float, ...]) -> GraspSet:
+    """Every grasp turned about its own closing axis z by each of ``angles`` (rad): ``G · R_z(α)``."""
+    turns = [make_pose(rot_z(a)) for a in angles]
+    return GraspSet.concatenate([GraspSet(grasps.poses @ R, grasps.widths, grasps.collides) for R in turns])
 
 
 def on_table(scene: Scene, i: int) -> bool:
@@ -52,7 +62,8 @@ class OracleDetector:
             if not on_table(scene, i):
                 continue
             T = scene.object_pose(i)
-            grasps = label_collisions(scene, i, obj.shape.grasps(EVAL_DENSITY).transformed(T)).free()
+            family = tilted(obj.shape.grasps(EVAL_DENSITY), (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG)))
+            grasps = label_collisions(scene, i, family.transformed(T)).free()
             sets.append(grasps)
             centres.append(np.repeat(T[None, :3, 3], len(grasps), axis=0))
         if not sets:

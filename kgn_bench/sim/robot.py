@@ -56,7 +56,7 @@ READY_Q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.785])
 PARK_Q = np.array([-1.45, -0.6, 0.0, -2.6, 0.0, 2.0, 0.785])
 """Folded towards the bin side (−y), out of the default camera's view."""
 
-PAD_CONTACT = dict(condim=4, friction=(1.0, 0.01, 0.0001), solref=(0.004, 1.0), solimp=(0.95, 0.99, 0.001),
+PAD_CONTACT = dict(condim=6, friction=(1.0, 0.01, 0.005), solref=(0.004, 1.0), solimp=(0.95, 0.99, 0.001),
                    priority=1)
 ROBOT_COLLISION = dict(contype=4, conaffinity=1)
 """Robot geoms touch the table, bin and objects (contype 1) but not each other or the labelling proxy."""
@@ -68,7 +68,7 @@ class PlaceBin:
 
     centre: tuple[float, float] = (-0.40, -0.60)
     half: float = 0.13
-    height: float = 0.10
+    height: float = 0.15
     wall: float = 0.01
     pile_height: float = 0.25
 
