@@ -153,6 +153,47 @@ def _cmd_perf_run(args) -> int:
     return 0
 
 
+def _cmd_train(args) -> int:
+    from kgn_bench.data.format import DatasetError
+    from kgn_bench.model.checkpoint import CheckpointError
+    from kgn_bench.model.train import TrainConfigError, load_train_config, train
+
+    try:
+        cfg = load_train_config(args.config)
+        final = train(cfg, progress=not args.quiet, device=args.device)
+    except (TrainConfigError, CheckpointError, DatasetError, FloatingPointError) as e:
+        return _fail(str(e))
+    print(f"wrote {final}")
+    return 0
+
+
+def _cmd_eval_vision(args) -> int:
+    import json
+
+    from kgn_bench.data.format import DatasetError, atomic_write_text
+    from kgn_bench.detectors import DetectorError
+    from kgn_bench.detectors.kgn import KGNDetector
+    from kgn_bench.eval.vision import evaluate_dataset
+    from kgn_bench.model.checkpoint import CheckpointError
+
+    try:
+        detector = KGNDetector(args.variant, args.weights)
+        metrics = evaluate_dataset(detector, args.data, split=args.split, views=args.views, progress=not args.quiet)
+    except (CheckpointError, DatasetError, DetectorError, ValueError) as e:
+        return _fail(str(e))
+    summary = metrics.summarise()
+    summary.update({"variant": args.variant, "weights": str(args.weights), "data": str(args.data),
+                    "split": args.split})
+    text = metrics.to_markdown()
+    print(text)
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out / "vision.json", json.dumps(summary, indent=1) + "\n")
+        atomic_write_text(args.out / "vision.md", text + "\n")
+        print(f"wrote {args.out}/vision.json, vision.md")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="kgn-bench", description="KGNv2 grasp detection: dataset, training and closed-loop benchmark.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -216,6 +257,24 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("run", type=Path, help="run folder or .rrd file")
     replay.add_argument("--save", type=Path, help="copy the recording here instead of opening the viewer")
     replay.set_defaults(func=_cmd_replay)
+
+    tr = sub.add_parser("train", help="train a KGN / KGNv2 model from a config (resumes an interrupted run)")
+    tr.add_argument("config", type=Path, help="training config (tasks/train_*.toml)")
+    tr.add_argument("--device", help="torch device (default: cuda when present, else cpu)")
+    tr.add_argument("--quiet", action="store_true", help="no progress bar")
+    tr.set_defaults(func=_cmd_train)
+
+    ev = sub.add_parser("eval", help="evaluate detectors")
+    esub = ev.add_subparsers(dest="eval_command", required=True, parser_class=_Parser)
+    vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split")
+    vis.add_argument("--weights", required=True, help="weights file, or a name under assets/weights")
+    vis.add_argument("--variant", default="kgnv2", help="decoding variant (kgnv2, kgnv2_sbranch, kgn, kgn_depth)")
+    vis.add_argument("--data", type=Path, required=True, help="dataset folder")
+    vis.add_argument("--split", default="test", choices=("train", "test"))
+    vis.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
+    vis.add_argument("--out", type=Path, help="folder for vision.json and vision.md")
+    vis.add_argument("--quiet", action="store_true", help="no progress bar")
+    vis.set_defaults(func=_cmd_eval_vision)
     return p
 
 

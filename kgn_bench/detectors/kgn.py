@@ -1,0 +1,84 @@
+"""The learned detectors ``kgnv2``, ``kgnv2_sbranch``, ``kgn`` and ``kgn_depth``: network → maps → decode.
+
+``detect``: validate the observation, ``model.preprocess.prepare`` (full frame resized by the model's
+``input_scale``, standardised, padded), one forward pass, sigmoid on the heatmap logits, then
+``model.decode.decode`` (top-k peaks, orientation filter, IPPE PnP, translation per variant) with the
+observed depth for ``kgn_depth``. Candidates are in the camera frame.
+
+Weights: a name looks up ``assets/weights/<name>.pt`` (``kgn_depth`` uses ``kgn``'s); a path loads that file.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from kgn_bench.model.checkpoint import LoadedModel, load_model
+from kgn_bench.model.decode import DecodeConfig, decode
+from kgn_bench.model.preprocess import prepare
+from kgn_bench.model.variants import get_variant
+
+from .base import Candidates, DetectorError, Observation
+
+__all__ = ["WEIGHTS_DIR", "KGNDetector", "weights_path"]
+
+WEIGHTS_DIR = Path(__file__).resolve().parents[2] / "assets" / "weights"
+
+
+def weights_path(variant_name: str, weights: str | Path | None = None) -> Path:
+    """The weights file for ``variant_name``: ``weights`` if it is a path to a file, else
+    ``assets/weights/<weights or the variant's training variant>.pt``."""
+    if weights is not None and (Path(weights).suffix == ".pt" or Path(weights).is_file()):
+        return Path(weights)
+    name = str(weights) if weights is not None else get_variant(variant_name).weights_variant
+    return WEIGHTS_DIR / f"{name}.pt"
+
+
+class KGNDetector:
+    """A KGN-family detector. ``timing`` holds the last call's seconds per stage (network, decode)."""
+
+    privileged = False
+
+    def __init__(self, variant: str = "kgnv2", weights: str | Path | None = None,
+                 model: LoadedModel | None = None, decode_config: DecodeConfig | None = None,
+                 threads: int | None = None) -> None:
+        self.variant = get_variant(variant)
+        self.name = variant
+        self.model = model if model is not None else load_model(weights_path(variant, weights), self.variant)
+        if self.model.variant.weights_variant != self.variant.weights_variant:
+            raise DetectorError(f"model of variant {self.model.variant.name!r} cannot decode as {variant!r}")
+        self.decode_config = decode_config or DecodeConfig()
+        self.threads = threads
+        self.timing: dict[str, float] = {}
+
+    def reset(self, seed: list[int]) -> None:
+        pass
+
+    def maps(self, observation: Observation) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """The prediction maps (numpy, ``hm`` as probabilities) and the image → output affine ``M``."""
+        observation.validate()
+        try:
+            x, M, (ho, wo) = prepare(observation.rgb, observation.depth, self.model.input_config)
+        except ValueError as e:
+            raise DetectorError(str(e)) from None
+        if self.threads:
+            torch.set_num_threads(self.threads)
+        t = time.perf_counter()
+        net = self.model.net
+        with torch.inference_mode():
+            out = net(x[None])
+        maps = {k: v[0, :, :ho, :wo].float().numpy() for k, v in out.items()}
+        maps["hm"] = 1.0 / (1.0 + np.exp(-maps["hm"]))
+        self.timing["network"] = time.perf_counter() - t
+        return maps, M
+
+    def detect(self, observation: Observation) -> Candidates:
+        maps, M = self.maps(observation)
+        t = time.perf_counter()
+        cands = decode(maps, observation.intrinsics.K, M, self.variant, self.decode_config,
+                       depth=observation.depth if self.variant.translation == "depth" else None)
+        self.timing["decode"] = time.perf_counter() - t
+        return cands

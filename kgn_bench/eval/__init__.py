@@ -1,0 +1,1 @@
+"""Offline evaluation of grasp detectors on the PS dataset (the paper's vision metrics: ``vision``)."""

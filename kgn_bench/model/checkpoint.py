@@ -1,0 +1,165 @@
+"""Checkpoints and shipped weights: one ``.pt`` file holding everything needed to rebuild the detector.
+
+A checkpoint is a ``torch.save`` dict:
+
+``format`` ("kgn-bench-checkpoint"), ``version``, ``variant`` (the training variant's name),
+``network`` and ``input`` (the ``NetworkConfig`` / ``InputConfig`` fields), ``model`` (state dict),
+``train`` (the training config as a dict), ``dataset`` (the dataset manifest and its SHA-256),
+``git_commit``, ``epoch`` (completed epochs), ``history`` (per-epoch losses and metrics), and, in
+training checkpoints only, ``optimizer`` and ``scheduler`` states (stripped from shipped weights).
+
+Files are written atomically (temporary file, fsync, rename), so an interrupted save never leaves a
+truncated checkpoint under the final name. Loading checks the format, the variant and the tensor shapes
+and fails with one ``CheckpointError`` line naming the problem.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import subprocess
+import tempfile
+from dataclasses import asdict, fields
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from kgn_bench.model.network import KGNNet, NetworkConfig, build_network
+from kgn_bench.model.preprocess import InputConfig
+from kgn_bench.model.variants import Variant, get_variant
+
+__all__ = [
+    "FORMAT",
+    "VERSION",
+    "CheckpointError",
+    "LoadedModel",
+    "dataset_identity",
+    "git_commit",
+    "load_checkpoint",
+    "load_model",
+    "save_checkpoint",
+]
+
+FORMAT = "kgn-bench-checkpoint"
+VERSION = 1
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file is missing, corrupt, of another format or of another variant."""
+
+
+def git_commit(repo: Path | None = None) -> str:
+    """The current commit of the source tree (``+dirty`` if modified), or ``unknown``."""
+    cwd = repo or Path(__file__).resolve().parents[2]
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, timeout=10)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
+                               capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.TimeoutExpired):
+        return "unknown"
+    if sha.returncode != 0:
+        return "unknown"
+    return sha.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+
+
+def dataset_identity(root: Path) -> dict[str, Any]:
+    """The dataset's manifest and the SHA-256 of its manifest and split files (what a model was trained on)."""
+    root = Path(root)
+    h = hashlib.sha256()
+    for name in ("dataset.json", "train.txt", "test.txt"):
+        p = root / name
+        if p.is_file():
+            h.update(name.encode() + b"\0" + p.read_bytes())
+    manifest = json.loads((root / "dataset.json").read_text()) if (root / "dataset.json").is_file() else {}
+    return {"path": str(root), "sha256": h.hexdigest(), "manifest": manifest}
+
+
+def save_checkpoint(path: Path, payload: dict[str, Any]) -> None:
+    """Atomically write ``payload`` (completed with ``format`` and ``version``) to ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = {"format": FORMAT, "version": VERSION, **payload}
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            torch.save(data, f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load_checkpoint(path: Path) -> dict[str, Any]:
+    """Read a checkpoint dict; ``CheckpointError`` if the file is missing, corrupt or not ours."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"no checkpoint at {path}")
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # torch raises many types for a damaged file
+        raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise CheckpointError(f"{path}: not a kgn-bench checkpoint")
+    if data.get("version") != VERSION:
+        raise CheckpointError(f"{path}: checkpoint version {data.get('version')}, expected {VERSION}")
+    for key in ("variant", "network", "input", "model"):
+        if key not in data:
+            raise CheckpointError(f"{path}: checkpoint lacks {key!r}")
+    return data
+
+
+def _config(cls, values: dict, path: Path):
+    names = {f.name for f in fields(cls)}
+    unknown = set(values) - names
+    if unknown:
+        raise CheckpointError(f"{path}: unknown {cls.__name__} fields {sorted(unknown)}")
+    try:
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+    except (TypeError, ValueError) as e:
+        raise CheckpointError(f"{path}: bad {cls.__name__}: {e}") from None
+
+
+class LoadedModel:
+    """A network in eval mode with the configs it was trained with."""
+
+    def __init__(self, net: KGNNet, variant: Variant, network: NetworkConfig, input_config: InputConfig,
+                 meta: dict[str, Any]) -> None:
+        self.net, self.variant, self.network, self.input_config, self.meta = net, variant, network, input_config, meta
+
+
+def load_model(path: Path, variant: Variant | None = None) -> LoadedModel:
+    """Build the network a checkpoint describes and load its weights.
+
+    ``variant``: the decoding variant the caller wants; its ``weights_variant`` must equal the
+    checkpoint's training variant (``kgn_depth`` loads ``kgn`` weights), else ``CheckpointError``.
+    """
+    data = load_checkpoint(path)
+    trained = data["variant"]
+    try:
+        trained_variant = get_variant(trained)
+    except ValueError as e:
+        raise CheckpointError(f"{path}: {e}") from None
+    if variant is not None and variant.weights_variant != trained:
+        raise CheckpointError(
+            f"{path} holds {trained!r} weights, but {variant.name!r} needs {variant.weights_variant!r} weights"
+        )
+    network = _config(NetworkConfig, data["network"], Path(path))
+    input_config = _config(InputConfig, data["input"], Path(path))
+    net = build_network(trained_variant, network)
+    try:
+        net.load_state_dict(data["model"])
+    except (RuntimeError, KeyError, TypeError) as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise CheckpointError(f"{path}: weights do not fit the network ({first})") from None
+    net.eval()
+    meta = {k: v for k, v in data.items() if k not in ("model", "optimizer", "scheduler")}
+    return LoadedModel(net, variant or trained_variant, network, input_config, meta)
+
+
+def config_dict(config) -> dict[str, Any]:
+    """A dataclass config as a plain dict (tuples become lists), for checkpoints and cards."""
+    return json.loads(json.dumps(asdict(config)))

@@ -1,0 +1,90 @@
+"""The four detector variants (DESIGN §6) as configuration, not code forks.
+
+A variant fixes three choices:
+
+* ``scale_branch``: whether the network has the per-bin scale head ŝ (the Euclidean distance
+  ‖t_cam‖ from the camera centre to the grasp origin, metres).
+* ``box``: the keypoint box whose projection is the keypoint target. ``fixed`` uses side
+  a = ``BOX_SIDE`` (0.1 m); ``scale_normalized`` (the paper's sKpt) uses a = k · s · ``BOX_SIDE`` with
+  s = ‖t_cam‖ in metres, so the box's image size no longer shrinks with distance.
+* ``translation``: how the decoder sets the translation of the PnP pose. ``pnp`` keeps the metric
+  PnP translation of the fixed box; ``scale`` keeps the PnP direction and sets ‖t‖ = ŝ; ``depth``
+  keeps the direction and sets ‖t‖ from the observed depth at the predicted centre.
+
+| variant         | scale head | box              | translation |
+| --------------- | ---------- | ---------------- | ----------- |
+| kgn             | no         | fixed            | pnp         |
+| kgn_depth       | no         | fixed            | depth       |
+| kgnv2_sbranch   | yes        | fixed            | scale       |
+| kgnv2           | yes        | scale_normalized | scale       |
+
+``kgn_depth`` uses the weights of ``kgn`` (it differs only at decoding): ``training_variant`` names it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+__all__ = ["BOX_SIDE", "VARIANTS", "Variant", "get_variant"]
+
+BOX_SIDE = 0.1
+"""w_ref: side of the fixed keypoint box in metres (KGN's canonical 0.1 m)."""
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One detector variant; see the module docstring for the meaning of each field."""
+
+    name: str
+    scale_branch: bool
+    box: Literal["fixed", "scale_normalized"]
+    translation: Literal["pnp", "scale", "depth"]
+    box_coeff: float = 1.0
+    """k of the scale-normalised box a = k · s · BOX_SIDE (unused for ``fixed``)."""
+    training_variant: str | None = None
+    """The variant whose weights this one loads (None: its own)."""
+
+    def __post_init__(self) -> None:
+        if self.box not in ("fixed", "scale_normalized"):
+            raise ValueError(f"variant {self.name}: unknown box {self.box!r}")
+        if self.translation not in ("pnp", "scale", "depth"):
+            raise ValueError(f"variant {self.name}: unknown translation {self.translation!r}")
+        if self.translation == "scale" and not self.scale_branch:
+            raise ValueError(f"variant {self.name}: translation 'scale' needs the scale branch")
+        if self.box == "scale_normalized" and self.translation == "pnp":
+            raise ValueError(f"variant {self.name}: a scale-normalised box has no metric PnP translation")
+        if not self.box_coeff > 0.0:
+            raise ValueError(f"variant {self.name}: box_coeff must be positive")
+
+    @property
+    def weights_variant(self) -> str:
+        return self.training_variant or self.name
+
+    def box_sides(self, distances: np.ndarray) -> np.ndarray:
+        """Keypoint-box side a (metres) for grasps at camera distances s = ‖t_cam‖ (metres), shape (N,)."""
+        s = np.asarray(distances, dtype=float)
+        if self.box == "fixed":
+            return np.full(s.shape, BOX_SIDE)
+        return self.box_coeff * s * BOX_SIDE
+
+
+VARIANTS: dict[str, Variant] = {
+    v.name: v
+    for v in (
+        Variant("kgn", scale_branch=False, box="fixed", translation="pnp"),
+        Variant("kgn_depth", scale_branch=False, box="fixed", translation="depth", training_variant="kgn"),
+        Variant("kgnv2_sbranch", scale_branch=True, box="fixed", translation="scale"),
+        Variant("kgnv2", scale_branch=True, box="scale_normalized", translation="scale"),
+    )
+}
+
+
+def get_variant(name: str) -> Variant:
+    """The variant called ``name``; ``ValueError`` listing the known ones otherwise."""
+    try:
+        return VARIANTS[name]
+    except KeyError:
+        raise ValueError(f"unknown variant {name!r} (known: {', '.join(VARIANTS)})") from None

@@ -1,0 +1,85 @@
+"""Training: config validation, a tiny real run on a generated dataset, resume, refusal of a changed config."""
+
+import json
+
+import pytest
+
+from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model
+from kgn_bench.model.train import TrainConfigError, load_train_config, train
+
+TINY = """
+[train]
+variant = "{variant}"
+data = "{data}"
+out = "{out}"
+epochs = {epochs}
+batch_size = 2
+lr = 1e-3
+lr_steps = [1]
+workers = 0
+eval_every = 1
+eval_views = 1
+
+[network]
+stem_channels = 8
+stage_channels = [8, 16, 16, 32]
+stage_blocks = [1, 1, 1, 1]
+neck_channels = 16
+head_conv = 16
+
+[augment]
+input_size = [64, 64]
+"""
+
+
+def _config(tmp_path, data, epochs=1, variant="kgnv2", name="train_tiny"):
+    p = tmp_path / f"{name}.toml"
+    p.write_text(TINY.format(variant=variant, data=data, out=tmp_path / "run", epochs=epochs))
+    return p
+
+
+def test_tiny_run_trains_checkpoints_and_resumes(tmp_path, tiny_dataset):
+    root, _ = tiny_dataset
+    cfg = load_train_config(_config(tmp_path, root))
+    final = train(cfg, progress=False)
+    history = [json.loads(line) for line in (tmp_path / "run" / "history.jsonl").read_text().splitlines()]
+    assert [h["epoch"] for h in history] == [1]
+    assert history[0]["total"] > 0 and "eval" in history[0]
+    ckpt = load_checkpoint(tmp_path / "run" / "last.pt")
+    assert ckpt["epoch"] == 1 and "optimizer" in ckpt and ckpt["dataset"]["sha256"]
+    assert ckpt["train"]["train"]["variant"] == "kgnv2" and ckpt["git_commit"]
+    shipped = load_checkpoint(final)
+    assert "optimizer" not in shipped
+    assert load_model(final).variant.name == "kgnv2"
+    # the same command again: nothing left to train, history unchanged
+    train(cfg, progress=False)
+    assert len((tmp_path / "run" / "history.jsonl").read_text().splitlines()) == 1
+    # a different config writing to the same folder is refused
+    changed = load_train_config(_config(tmp_path, root, epochs=2, name="changed"))
+    with pytest.raises(CheckpointError, match="different config"):
+        train(changed, progress=False)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[train]\nvariant = 'kgnv3'\n", "unknown variant 'kgnv3'"),
+    ("[train]\nvariant = 'kgn_depth'\n", "train that one"),
+    ("[train]\nepochs = 0\n", "epochs and batch_size must be"),
+    ("[train]\nspeed = 3\n", "unknown key"),
+    ("[optimiser]\n", "unknown section"),
+    ("[augment]\ninput_size = [100, 64]\n", "multiples of 32"),
+    ("[train\n", "invalid TOML"),
+])
+def test_bad_configs_give_one_line(tmp_path, text, message):
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    with pytest.raises(TrainConfigError, match=message) as e:
+        load_train_config(p)
+    assert "\n" not in str(e.value)
+
+
+def test_shipped_configs_load():
+    from pathlib import Path
+
+    for p in sorted(Path(__file__).parents[1].glob("tasks/train_*.toml")):
+        cfg = load_train_config(p)
+        assert cfg.train.variant in ("kgn", "kgnv2", "kgnv2_sbranch")
