@@ -194,6 +194,47 @@ def _cmd_eval_vision(args) -> int:
     return 0
 
 
+def _cmd_perf_detector(args) -> int:
+    from kgn_bench.data.format import DatasetError
+    from kgn_bench.model.checkpoint import CheckpointError
+    from kgn_bench.perf import perf_detector
+
+    try:
+        print(perf_detector(args.variant, args.weights, frames=args.frames, threads=args.threads, data=args.data))
+    except (CheckpointError, DatasetError, ValueError) as e:
+        return _fail(str(e))
+    return 0
+
+
+def _cmd_eval_show(args) -> int:
+    from kgn_bench.data.format import DatasetError
+    from kgn_bench.detectors import DetectorError
+    from kgn_bench.detectors.kgn import KGNDetector
+    from kgn_bench.model.checkpoint import CheckpointError
+    from kgn_bench.viz.draw import save_png, show_predictions
+
+    try:
+        detector = KGNDetector(args.variant, args.weights)
+        img = show_predictions(detector, args.data, args.scene, args.view)
+    except (CheckpointError, DatasetError, DetectorError, ValueError) as e:
+        return _fail(str(e))
+    save_png(args.out, img)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_export(args) -> int:
+    from kgn_bench.detectors.kgn import WEIGHTS_DIR
+    from kgn_bench.model.checkpoint import CheckpointError, export_weights
+
+    try:
+        weights, card = export_weights(args.checkpoint, args.name, args.out or WEIGHTS_DIR)
+    except CheckpointError as e:
+        return _fail(str(e))
+    print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="kgn-bench", description="KGNv2 grasp detection: dataset, training and closed-loop benchmark.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -236,6 +277,14 @@ def build_parser() -> argparse.ArgumentParser:
     prun.add_argument("--workers", type=_int_at_least(1), default=2)
     prun.set_defaults(func=_cmd_perf_run)
 
+    pdet = psub.add_parser("detector", help="learned detector frames/s at 640×480 and the split")
+    pdet.add_argument("--variant", default="kgnv2")
+    pdet.add_argument("--weights", help="weights file or name under assets/weights (default: the shipped one)")
+    pdet.add_argument("--frames", type=_int_at_least(1), default=20)
+    pdet.add_argument("--threads", type=_int_at_least(1), default=2, help="torch threads (default 2)")
+    pdet.add_argument("--data", type=Path, help="dataset whose test views to use (default: 4 generated scenes)")
+    pdet.set_defaults(func=_cmd_perf_detector)
+
     run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)")
     run.add_argument("task", type=Path, help="task file (tasks/*.toml)")
     run.add_argument("--detector", required=True, help="oracle, random, ...")
@@ -264,6 +313,12 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
     tr.set_defaults(func=_cmd_train)
 
+    ex = sub.add_parser("export", help="ship a trained checkpoint as weights with a model card")
+    ex.add_argument("checkpoint", type=Path, help="a training run's final.pt (or last.pt)")
+    ex.add_argument("--name", required=True, help="weights name (kgnv2, kgn, ...)")
+    ex.add_argument("--out", type=Path, help="folder (default assets/weights)")
+    ex.set_defaults(func=_cmd_export)
+
     ev = sub.add_parser("eval", help="evaluate detectors")
     esub = ev.add_subparsers(dest="eval_command", required=True, parser_class=_Parser)
     vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split")
@@ -275,6 +330,14 @@ def build_parser() -> argparse.ArgumentParser:
     vis.add_argument("--out", type=Path, help="folder for vision.json and vision.md")
     vis.add_argument("--quiet", action="store_true", help="no progress bar")
     vis.set_defaults(func=_cmd_eval_vision)
+    shw = esub.add_parser("show", help="draw a detector's keypoint boxes beside the ground truth of one view")
+    shw.add_argument("--weights", required=True, help="weights file, or a name under assets/weights")
+    shw.add_argument("--variant", default="kgnv2")
+    shw.add_argument("--data", type=Path, required=True)
+    shw.add_argument("--scene", type=_int_at_least(0), required=True)
+    shw.add_argument("--view", type=_int_at_least(0), default=0)
+    shw.add_argument("--out", type=Path, required=True, help="PNG to write")
+    shw.set_defaults(func=_cmd_eval_show)
     return p
 
 

@@ -38,7 +38,8 @@ def weights_path(variant_name: str, weights: str | Path | None = None) -> Path:
 
 
 class KGNDetector:
-    """A KGN-family detector. ``timing`` holds the last call's seconds per stage (network, decode)."""
+    """A KGN-family detector. ``timing`` holds the last call's seconds per stage: ``preprocess``,
+    ``network``, ``decode`` (peaks, filters, translation) and ``pnp``."""
 
     privileged = False
 
@@ -60,10 +61,13 @@ class KGNDetector:
     def maps(self, observation: Observation) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """The prediction maps (numpy, ``hm`` as probabilities) and the image → output affine ``M``."""
         observation.validate()
+        t = time.perf_counter()
+        self.timing = {}
         try:
             x, M, (ho, wo) = prepare(observation.rgb, observation.depth, self.model.input_config)
         except ValueError as e:
             raise DetectorError(str(e)) from None
+        self.timing["preprocess"] = time.perf_counter() - t
         if self.threads:
             torch.set_num_threads(self.threads)
         t = time.perf_counter()
@@ -79,6 +83,6 @@ class KGNDetector:
         maps, M = self.maps(observation)
         t = time.perf_counter()
         cands = decode(maps, observation.intrinsics.K, M, self.variant, self.decode_config,
-                       depth=observation.depth if self.variant.translation == "depth" else None)
-        self.timing["decode"] = time.perf_counter() - t
+                       depth=observation.depth if self.variant.translation == "depth" else None, timing=self.timing)
+        self.timing["decode"] = time.perf_counter() - t - self.timing.get("pnp", 0.0)
         return cands

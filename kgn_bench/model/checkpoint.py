@@ -36,9 +36,11 @@ __all__ = [
     "CheckpointError",
     "LoadedModel",
     "dataset_identity",
+    "export_weights",
     "git_commit",
     "load_checkpoint",
     "load_model",
+    "model_card",
     "save_checkpoint",
 ]
 
@@ -163,3 +165,65 @@ def load_model(path: Path, variant: Variant | None = None) -> LoadedModel:
 def config_dict(config) -> dict[str, Any]:
     """A dataclass config as a plain dict (tuples become lists), for checkpoints and cards."""
     return json.loads(json.dumps(asdict(config)))
+
+
+def model_card(data: dict[str, Any], name: str, size_bytes: int) -> str:
+    """A Markdown model card from a checkpoint dict: variant, data, schedule, wall time, machine, commit,
+    final losses and the last held-out metrics."""
+    train = data.get("train", {}).get("train", {})
+    history = data.get("history", [])
+    last = history[-1] if history else {}
+    evals = [h for h in history if isinstance(h.get("eval"), dict)]
+    seconds = sum(h.get("seconds", 0.0) for h in history)
+    ds = data.get("dataset", {})
+    manifest = ds.get("manifest", {})
+    lines = [
+        f"# {name}",
+        "",
+        "| field | value |",
+        "| --- | --- |",
+        f"| variant | `{data['variant']}` |",
+        f"| parameters | {data.get('parameters', 'n/a')} |",
+        f"| file size | {size_bytes / 1e6:.1f} MB |",
+        f"| data | `{ds.get('path', '?')}`: {manifest.get('mode', '?')}-object PS, "
+        f"{manifest.get('scenes', '?')} scenes × {manifest.get('views', '?')} views, seed {manifest.get('seed', '?')} "
+        f"(sha256 {str(ds.get('sha256', ''))[:12]}) |",
+        f"| epochs | {data.get('epoch', '?')} (batch {train.get('batch_size', '?')}, Adam lr {train.get('lr', '?')}, "
+        f"×{train.get('lr_gamma', '?')} after epochs {train.get('lr_steps', '?')}) |",
+        f"| training views | {train.get('limit') or 'all of the train split'} |",
+        f"| wall time | {seconds / 60:.0f} min |",
+        f"| machine | {data.get('machine', '?')} |",
+        f"| git commit | `{data.get('git_commit', '?')}` |",
+        f"| config | `{data.get('train', {}).get('name', '?')}` |",
+        f"| network | {json.dumps(data.get('network', {}))} |",
+        f"| input | {json.dumps(data.get('input', {}))} |",
+    ]
+    if last:
+        losses = ", ".join(f"{k} {last[k]:.4f}" for k in ("total", "hm", "reg", "kpts", "width", "scale") if k in last)
+        lines += [f"| final losses (epoch {last.get('epoch')}) | {losses} |"]
+    if evals:
+        e = evals[-1]
+        figs = "; ".join(f"{label}: GSR {_pct(v['gsr'])} GCR {_pct(v['gcr'])} OSR {_pct(v['osr'])}"
+                         for label, v in e["eval"].items())
+        lines += [f"| held-out check (epoch {e['epoch']}, {e.get('eval_views', '?')} test views) | {figs} |"]
+    lines += ["", "Training curve (per epoch): " + ", ".join(f"{h['epoch']}: {h.get('total', float('nan')):.3f}"
+                                                         for h in history)]
+    return "\n".join(lines) + "\n"
+
+
+def _pct(x: float | None) -> str:
+    return "n/a" if x is None else f"{100 * x:.1f} %"
+
+
+def export_weights(src: Path, name: str, out_dir: Path) -> tuple[Path, Path]:
+    """Copy a checkpoint's weights (no optimizer state) to ``out_dir/<name>.pt`` and write the model card
+    ``out_dir/<name>.md``; returns both paths."""
+    data = load_checkpoint(src)
+    slim = {k: v for k, v in data.items() if k not in ("optimizer", "torch_rng", "format", "version")}
+    slim["model"] = {k: v.to(torch.float32) if v.is_floating_point() else v for k, v in slim["model"].items()}
+    out_dir = Path(out_dir)
+    weights = out_dir / f"{name}.pt"
+    save_checkpoint(weights, slim)
+    card = out_dir / f"{name}.md"
+    card.write_text(model_card(data, name, weights.stat().st_size))
+    return weights, card

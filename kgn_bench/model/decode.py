@@ -28,6 +28,7 @@ Widths are ``width[bin, y, x]`` clipped at 0; confidences are the heatmap scores
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import cv2
@@ -174,12 +175,14 @@ def decode(
     variant: Variant,
     config: DecodeConfig | None = None,
     depth: np.ndarray | None = None,
+    timing: dict[str, float] | None = None,
 ) -> Candidates:
     """Grasp candidates (camera frame, ``T_cam_grasp``) of one image from its prediction maps.
 
     ``maps`` as in the module docstring, ``K`` 3×3 intrinsics, ``M`` 2×3 image → output affine, ``depth``
     (H, W) planar metres of the original image (needed by ``translation == "depth"``, ignored otherwise).
-    Candidate keypoints are the predicted image pixels in canonical order (L, R, TL, TR).
+    Candidate keypoints are the predicted image pixels in canonical order (L, R, TL, TR). ``timing``, if
+    given, receives the seconds spent in PnP under ``"pnp"``.
     """
     config = config or DecodeConfig()
     m = _check_maps(maps, variant)
@@ -217,7 +220,10 @@ def decode(
 
     poses = np.repeat(np.eye(4)[None], len(c), axis=0)
     errors = np.full(len(c), np.nan)
+    t0 = time.perf_counter()
     poses[keep], errors[keep], solved = solve_box_pnp_batch(kp_img[keep], K)
+    if timing is not None:
+        timing["pnp"] = time.perf_counter() - t0
     keep[keep] = solved
 
     if variant.translation != "pnp":
