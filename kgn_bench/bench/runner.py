@@ -50,10 +50,31 @@ def _git_commit() -> str:
         return "unknown"
 
 
+def _weights_identity(detector: str) -> str | None:
+    """SHA-256 of a learned detector's weights file (checked to load first), None for other detectors."""
+    from kgn_bench.detectors import LEARNED
+
+    if detector not in LEARNED:
+        return None
+    import hashlib
+
+    from kgn_bench.detectors.kgn import weights_path
+    from kgn_bench.model.checkpoint import load_checkpoint
+
+    path = weights_path(detector)
+    load_checkpoint(path)  # a missing or corrupt file fails here, in one line, before any trial
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
 def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
-    """What makes two runs the same run (and so resumable into one folder)."""
-    return {"task": task.name, "protocol": task.protocol, "detector": detector, "seed": task.seed,
-            "trials": task.n_trials, "config": task.to_dict()}
+    """What makes two runs the same run (and so resumable into one folder): task, seed, config and, for a
+    learned detector, the hash of its weights."""
+    identity = {"task": task.name, "protocol": task.protocol, "detector": detector, "seed": task.seed,
+                "trials": task.n_trials, "config": task.to_dict()}
+    weights = _weights_identity(detector)
+    if weights is not None:
+        identity["weights_sha256"] = weights
+    return identity
 
 
 def read_trials(path: Path) -> list[dict[str, Any]]:
@@ -106,6 +127,12 @@ _WORKER: dict[str, Any] = {}
 
 def _worker_init(detector: str) -> None:
     os.environ.setdefault("LP_NUM_THREADS", "1")
+    from kgn_bench.detectors import LEARNED
+
+    if detector in LEARNED:  # one torch thread per worker: two-thread torch stalls when the workers fill the cores
+        import torch
+
+        torch.set_num_threads(1)
     _worker_setup(detector)
 
 
