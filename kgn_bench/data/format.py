@@ -22,8 +22,10 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import cv2
 import numpy as np
@@ -39,6 +41,7 @@ __all__ = [
     "DatasetError",
     "ObjectAnnotation",
     "SceneAnnotation",
+    "atomic_write",
     "atomic_write_text",
     "read_manifest",
     "read_split",
@@ -202,19 +205,25 @@ def read_view(folder: Path, view: int) -> RGBD:
     return RGBD(rgb=cv2.cvtColor(rgb, cv2.COLOR_BGR2RGB), depth=decode_depth(depth), mask=mask)
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to a temporary file beside ``path`` and rename it into place."""
+def atomic_write(path: Path, write: Callable[[BinaryIO], None]) -> None:
+    """Call ``write`` on a temporary file beside ``path``, fsync it and rename it into place, so that
+    ``path`` is either the old file or the whole new one, never a part."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+        with os.fdopen(fd, "wb") as f:
+            write(f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically (``atomic_write``)."""
+    atomic_write(path, lambda f: f.write(text.encode()))
 
 
 def read_manifest(root: Path) -> dict:
