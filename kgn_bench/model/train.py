@@ -168,6 +168,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None) ->
     net = build_network(variant, cfg.network).to(dev)
     optim = torch.optim.Adam(net.parameters(), lr=t_cfg.lr)
     start, history = 0, []
+    commit = git_commit()  # the code that starts the run (kept across resumes)
 
     last = out / "last.pt"
     if last.exists():
@@ -179,6 +180,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None) ->
         net.load_state_dict(ckpt["model"])
         optim.load_state_dict(ckpt["optimizer"])
         start, history = int(ckpt["epoch"]), list(ckpt.get("history", []))
+        commit = ckpt.get("git_commit", commit)
         torch.set_rng_state(ckpt["torch_rng"])
 
     def payload(epoch: int, with_optimizer: bool) -> dict[str, Any]:
@@ -189,7 +191,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None) ->
             "model": {k: v.detach().cpu() for k, v in net.state_dict().items()},
             "train": cfg.to_dict(),
             "dataset": identity,
-            "git_commit": git_commit(),
+            "git_commit": commit,
             "epoch": epoch,
             "history": history,
             "parameters": count_parameters(net),
