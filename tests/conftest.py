@@ -21,3 +21,31 @@ def tiny_dataset(tmp_path_factory):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+SMALL_NETWORK_KW = dict(stem_channels=8, stage_channels=(8, 16, 16, 32), stage_blocks=(1, 1, 1, 1),
+                        neck_channels=16, head_conv=16)
+
+
+@pytest.fixture
+def small_model():
+    """``save(path, variant="kgnv2", seed=0, label=None, prepare=None, **extra) -> net``: a seeded small
+    network of ``variant`` (``prepare(net)`` may edit it) written as a checkpoint labelled ``label`` (default
+    the variant) with ``extra`` entries."""
+    import torch
+
+    from kgn_bench.model.checkpoint import model_payload, save_checkpoint
+    from kgn_bench.model.network import NetworkConfig, build_network
+    from kgn_bench.model.preprocess import InputConfig
+    from kgn_bench.model.variants import get_variant
+
+    def save(path, variant="kgnv2", seed=0, label=None, prepare=None, **extra):
+        torch.manual_seed(seed)
+        config = NetworkConfig(**SMALL_NETWORK_KW)
+        net = build_network(get_variant(variant), config)
+        if prepare is not None:
+            prepare(net)
+        save_checkpoint(path, {**model_payload(net, label or variant, config, InputConfig()), **extra})
+        return net
+
+    return save

@@ -3,26 +3,12 @@
 import pytest
 import torch
 
-from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model, save_checkpoint
-from kgn_bench.model.network import NetworkConfig, build_network
-from kgn_bench.model.preprocess import InputConfig
+from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model
 from kgn_bench.model.variants import get_variant
 
-SMALL = NetworkConfig(stem_channels=8, stage_channels=(8, 16, 16, 32), stage_blocks=(1, 1, 1, 1),
-                      neck_channels=16, head_conv=16)
 
-
-def _save(path, variant="kgnv2", **extra):
-    torch.manual_seed(0)
-    net = build_network(get_variant(variant), SMALL)
-    payload = {"variant": variant, "network": {**SMALL.__dict__}, "input": {**InputConfig().__dict__},
-               "model": net.state_dict(), **extra}
-    save_checkpoint(path, payload)
-    return net
-
-
-def test_round_trip_gives_the_same_outputs(tmp_path):
-    net = _save(tmp_path / "w.pt", epoch=3)
+def test_round_trip_gives_the_same_outputs(tmp_path, small_model):
+    net = small_model(tmp_path / "w.pt", epoch=3)
     loaded = load_model(tmp_path / "w.pt")
     x = torch.randn(1, 4, 64, 64)
     net.eval()
@@ -35,8 +21,8 @@ def test_round_trip_gives_the_same_outputs(tmp_path):
     assert not list(tmp_path.glob(".*.tmp"))  # no temporary file left behind
 
 
-def test_kgn_depth_loads_kgn_weights_and_refuses_others(tmp_path):
-    _save(tmp_path / "kgn.pt", variant="kgn")
+def test_kgn_depth_loads_kgn_weights_and_refuses_others(tmp_path, small_model):
+    small_model(tmp_path / "kgn.pt", variant="kgn")
     assert load_model(tmp_path / "kgn.pt", get_variant("kgn_depth")).variant.name == "kgn_depth"
     with pytest.raises(CheckpointError, match="holds 'kgn' weights, but 'kgnv2' needs 'kgnv2' weights"):
         load_model(tmp_path / "kgn.pt", get_variant("kgnv2"))
@@ -54,8 +40,8 @@ def test_corrupt_files_give_one_line(tmp_path, content, message):
     assert "\n" not in str(e.value)
 
 
-def test_truncated_and_foreign_files(tmp_path):
-    _save(tmp_path / "w.pt")
+def test_truncated_and_foreign_files(tmp_path, small_model):
+    small_model(tmp_path / "w.pt")
     data = (tmp_path / "w.pt").read_bytes()
     (tmp_path / "cut.pt").write_bytes(data[: len(data) // 2])
     with pytest.raises(CheckpointError, match="not a readable checkpoint"):
@@ -67,9 +53,7 @@ def test_truncated_and_foreign_files(tmp_path):
         load_checkpoint(tmp_path / "missing.pt")
 
 
-def test_weights_that_do_not_fit_the_network(tmp_path):
-    net = build_network(get_variant("kgn"), SMALL)  # no scale head
-    save_checkpoint(tmp_path / "w.pt", {"variant": "kgnv2", "network": {**SMALL.__dict__},
-                                        "input": {**InputConfig().__dict__}, "model": net.state_dict()})
+def test_weights_that_do_not_fit_the_network(tmp_path, small_model):
+    small_model(tmp_path / "w.pt", variant="kgn", label="kgnv2")  # no scale head, labelled kgnv2
     with pytest.raises(CheckpointError, match="weights do not fit the network"):
         load_model(tmp_path / "w.pt")

@@ -54,32 +54,18 @@ def test_generate_refusal_exits_2_from_the_console_script(tmp_path):
     assert proc.stderr.strip().count("\n") == 0 and "not empty" in proc.stderr
 
 
-def _small_checkpoint(path, variant="kgnv2"):
-    import torch
-
-    from kgn_bench.model.checkpoint import save_checkpoint
-    from kgn_bench.model.network import NetworkConfig, build_network
-    from kgn_bench.model.preprocess import InputConfig
-    from kgn_bench.model.variants import get_variant
-
-    small = NetworkConfig(stem_channels=8, stage_channels=(8, 16, 16, 32), stage_blocks=(1, 1, 1, 1),
-                          neck_channels=16, head_conv=16)
-    torch.manual_seed(0)
-    net = build_network(get_variant(variant), small)
-    history = [{"epoch": 1, "total": 3.5, "hm": 1.0, "seconds": 60.0,
-                "eval": {"1 cm / 20°": {"gsr": 0.25, "gcr": None, "osr": 0.5}}, "eval_views": 2}]
-    save_checkpoint(path, {"variant": variant, "network": {**small.__dict__}, "input": {**InputConfig().__dict__},
-                           "model": net.state_dict(), "optimizer": {"state": {}}, "epoch": 1, "history": history,
-                           "git_commit": "abc1234", "train": {"name": "train_x", "train": {"batch_size": 8}}})
+HISTORY = [{"epoch": 1, "total": 3.5, "hm": 1.0, "seconds": 60.0,
+            "eval": {"1 cm / 20°": {"gsr": 0.25, "gcr": None, "osr": 0.5}}, "eval_views": 2}]
 
 
-def test_export_eval_and_show_commands(tiny_dataset, tmp_path, capsys):
+def test_export_eval_and_show_commands(tiny_dataset, tmp_path, capsys, small_model):
     import json
 
     from kgn_bench.model.checkpoint import load_checkpoint
 
     root, _ = tiny_dataset
-    _small_checkpoint(tmp_path / "final.pt")
+    small_model(tmp_path / "final.pt", optimizer={"state": {}}, epoch=1, history=HISTORY, git_commit="abc1234",
+                train={"name": "train_x", "train": {"batch_size": 8}})
     assert main(["export", str(tmp_path / "final.pt"), "--name", "mine", "--out", str(tmp_path / "w")]) == 0
     shipped = load_checkpoint(tmp_path / "w" / "mine.pt")
     assert "optimizer" not in shipped and shipped["epoch"] == 1

@@ -6,33 +6,24 @@ import torch
 
 from kgn_bench.detectors import DetectorError, Observation, make_detector
 from kgn_bench.detectors.kgn import WEIGHTS_DIR, KGNDetector, weights_path
-from kgn_bench.model.checkpoint import CheckpointError, save_checkpoint
-from kgn_bench.model.network import NetworkConfig, build_network
-from kgn_bench.model.preprocess import InputConfig
-from kgn_bench.model.variants import get_variant
+from kgn_bench.model.checkpoint import CheckpointError
 from kgn_bench.sim.camera import REALSENSE
 
-SMALL = NetworkConfig(stem_channels=8, stage_channels=(8, 16, 16, 32), stage_blocks=(1, 1, 1, 1),
-                      neck_channels=16, head_conv=16)
 
+def _constant_maps(hm_bias):
+    """Edit a network so every cell is a bin-4 peak of ``hm_bias`` with a horizontal box of keypoints."""
 
-def _weights(tmp_path, variant="kgnv2", hm_bias=None):
-    torch.manual_seed(0)
-    net = build_network(get_variant(variant), SMALL)
-    if hm_bias is not None:  # constant maps: every cell a peak with a horizontal box of keypoints (bin 4)
+    def prepare(net):
         for name, bias in (("hm", -5.0), ("width", 0.05), ("scale", 0.8)):
             torch.nn.init.zeros_(net.heads[name][2].weight)
             torch.nn.init.constant_(net.heads[name][2].bias, bias)
-        with torch.no_grad():
-            net.heads["hm"][2].bias[4] = hm_bias
         box = torch.tensor([-3.0, 0.0, 3.0, 0.0, -3.0, -6.0, 3.0, -6.0])  # L, R, TL, TR offsets (output px)
         torch.nn.init.zeros_(net.heads["kpts"][2].weight)
         with torch.no_grad():
+            net.heads["hm"][2].bias[4] = hm_bias
             net.heads["kpts"][2].bias.copy_(box.repeat(9))
-    path = tmp_path / f"{variant}.pt"
-    save_checkpoint(path, {"variant": variant, "network": {**SMALL.__dict__}, "input": {**InputConfig().__dict__},
-                           "model": net.state_dict()})
-    return path
+
+    return prepare
 
 
 def _observation(depth_value=0.8):
@@ -47,8 +38,9 @@ def test_weights_lookup():
     assert weights_path("kgnv2", "mine") == WEIGHTS_DIR / "mine.pt"
 
 
-def test_forward_pass_gives_camera_frame_candidates(tmp_path):
-    det = KGNDetector("kgnv2", _weights(tmp_path, hm_bias=3.0))  # every cell a peak: exercises decode fully
+def test_forward_pass_gives_camera_frame_candidates(tmp_path, small_model):
+    small_model(tmp_path / "peaks.pt", prepare=_constant_maps(3.0))  # every cell a peak: exercises decode fully
+    det = KGNDetector("kgnv2", tmp_path / "peaks.pt")
     cands = det.detect(_observation())
     assert 0 < len(cands) <= 100
     assert np.all(np.isfinite(cands.poses)) and np.all(cands.poses[:, 2, 3] > 0)
@@ -56,12 +48,14 @@ def test_forward_pass_gives_camera_frame_candidates(tmp_path):
     np.testing.assert_allclose(np.linalg.norm(cands.poses[:, :3, 3], axis=1), 0.8, rtol=1e-5)  # ‖t‖ = ŝ
     np.testing.assert_allclose(cands.widths, 0.05, rtol=1e-5)
     assert {"network", "decode"} <= det.timing.keys()
-    quiet = KGNDetector("kgnv2", _weights(tmp_path))  # initial bias −2.19: no peak reaches 0.3
+    small_model(tmp_path / "kgnv2.pt")
+    quiet = KGNDetector("kgnv2", tmp_path / "kgnv2.pt")  # initial bias −2.19: no peak reaches 0.3
     assert len(quiet.detect(_observation())) == 0
 
 
-def test_bad_observations_raise_detector_errors(tmp_path):
-    det = KGNDetector("kgnv2", _weights(tmp_path))
+def test_bad_observations_raise_detector_errors(tmp_path, small_model):
+    small_model(tmp_path / "kgnv2.pt")
+    det = KGNDetector("kgnv2", tmp_path / "kgnv2.pt")
     obs = _observation()
     with pytest.raises(DetectorError, match="depth contains NaN"):
         det.detect(Observation(obs.rgb, np.full_like(obs.depth, np.nan), REALSENSE, np.eye(4)))
@@ -71,10 +65,12 @@ def test_bad_observations_raise_detector_errors(tmp_path):
         det.detect(Observation(obs.rgb[:100], obs.depth, REALSENSE, np.eye(4)))
 
 
-def test_variant_mismatch_and_missing_weights(tmp_path):
+def test_variant_mismatch_and_missing_weights(tmp_path, small_model):
+    small_model(tmp_path / "kgnv2.pt")
+    small_model(tmp_path / "kgn.pt", variant="kgn")
     with pytest.raises(CheckpointError, match="needs 'kgn' weights"):
-        KGNDetector("kgn_depth", _weights(tmp_path, "kgnv2"))
-    assert KGNDetector("kgn_depth", _weights(tmp_path, "kgn")).variant.translation == "depth"
+        KGNDetector("kgn_depth", tmp_path / "kgnv2.pt")
+    assert KGNDetector("kgn_depth", tmp_path / "kgn.pt").variant.translation == "depth"
     with pytest.raises(CheckpointError, match="no checkpoint at"):
         make_detector("kgnv2", tmp_path / "missing.pt")
 

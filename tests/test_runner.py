@@ -7,7 +7,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-import torch
 
 from kgn_bench.bench.runner import RunError, read_trials, run_benchmark
 from kgn_bench.bench.stats import summarise, summary_markdown
@@ -209,30 +208,20 @@ def test_cli_run_errors(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_learned_detector_weights_are_checked_and_part_of_the_identity(tmp_path, monkeypatch):
+def test_learned_detector_weights_are_checked_and_part_of_the_identity(tmp_path, monkeypatch, small_model):
     import kgn_bench.detectors.kgn as kgn
     from kgn_bench.bench.runner import run_identity
-    from kgn_bench.model.checkpoint import CheckpointError, save_checkpoint
-    from kgn_bench.model.network import NetworkConfig, build_network
-    from kgn_bench.model.preprocess import InputConfig
-    from kgn_bench.model.variants import get_variant
+    from kgn_bench.model.checkpoint import CheckpointError
 
     monkeypatch.setattr(kgn, "WEIGHTS_DIR", tmp_path / "weights")
     task = load_task(TASKS / "ci_oracle.toml")
     with pytest.raises(CheckpointError, match="no checkpoint at"):
         run_benchmark(task, "kgnv2", tmp_path / "run", progress=False)
     assert not (tmp_path / "run").exists()  # nothing written before the weights were found
-    small = NetworkConfig(stem_channels=8, stage_channels=(8, 16, 16, 32), stage_blocks=(1, 1, 1, 1),
-                          neck_channels=16, head_conv=16)
+    hashes = []
     for seed in (0, 1):
-        torch.manual_seed(seed)
-        net = build_network(get_variant("kgnv2"), small)
-        save_checkpoint(tmp_path / "weights" / "kgnv2.pt", {"variant": "kgnv2", "network": {**small.__dict__},
-                                                           "input": {**InputConfig().__dict__},
-                                                           "model": net.state_dict()})
-        ident = run_identity(task, "kgnv2")
-        assert len(ident["weights_sha256"]) == 64
-        if seed == 0:
-            first = ident["weights_sha256"]
-    assert ident["weights_sha256"] != first  # other weights: another run, never resumed into the same folder
+        small_model(tmp_path / "weights" / "kgnv2.pt", seed=seed)
+        hashes.append(run_identity(task, "kgnv2")["weights_sha256"])
+    assert len(hashes[0]) == 64
+    assert hashes[0] != hashes[1]  # other weights: another run, never resumed into the same folder
     assert "weights_sha256" not in run_identity(task, "oracle")

@@ -26,7 +26,6 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import torch
 from torch.utils.data import Dataset
@@ -37,7 +36,7 @@ from kgn_bench.model.preprocess import InputConfig, affine_for_crop, output_affi
 from kgn_bench.model.targets import OUTPUT_STRIDE, encode_targets
 from kgn_bench.model.variants import Variant
 
-__all__ = ["AugmentConfig", "GraspViewDataset", "camera_frame_grasps", "input_to_bgr"]
+__all__ = ["AugmentConfig", "GraspViewDataset", "camera_frame_grasps"]
 
 
 @dataclass(frozen=True)
@@ -156,11 +155,3 @@ class GraspViewDataset(Dataset):
         targets = encode_targets(grasps.poses, grasps.widths, ann.intrinsics.K, M, out_shape, self.variant)
         return torch.from_numpy(np.ascontiguousarray(x)), {k: torch.from_numpy(v) for k, v in targets.items()}
 
-
-def input_to_bgr(x: np.ndarray, input_config: InputConfig | None = None) -> np.ndarray:
-    """The RGB channels of a standardised input as a uint8 BGR image (for looking at samples)."""
-    input_config = input_config or InputConfig()
-    mean = np.asarray(input_config.mean[:3], dtype=np.float32)[:, None, None]
-    std = np.asarray(input_config.std[:3], dtype=np.float32)[:, None, None]
-    rgb = np.clip((x[:3] * std + mean) * 255.0, 0, 255).astype(np.uint8).transpose(1, 2, 0)
-    return cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)

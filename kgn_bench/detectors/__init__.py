@@ -21,12 +21,14 @@ def _learned(variant: str) -> Callable[..., Detector]:
     return make
 
 
+LEARNED = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth")
+"""Detectors backed by trained weights (one per model variant)."""
+
 DETECTORS: dict[str, Callable[..., Detector]] = {
     "oracle": OracleDetector,
     "random": RandomDetector,
-    **{v: _learned(v) for v in ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth")},
+    **{v: _learned(v) for v in LEARNED},
 }
-LEARNED = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth")
 
 
 def make_detector(name: str, weights=None) -> Detector:

@@ -40,6 +40,7 @@ __all__ = [
     "load_checkpoint",
     "load_model",
     "model_card",
+    "model_payload",
     "save_checkpoint",
 ]
 
@@ -155,6 +156,14 @@ def load_model(path: Path, variant: Variant | None = None) -> LoadedModel:
 def config_dict(config) -> dict[str, Any]:
     """A dataclass config as a plain dict (tuples become lists), for checkpoints and cards."""
     return json.loads(json.dumps(asdict(config)))
+
+
+def model_payload(net: torch.nn.Module, variant: str, network: NetworkConfig, input_config: InputConfig
+                  ) -> dict[str, Any]:
+    """The checkpoint entries that rebuild a network: ``variant``, ``network``, ``input`` and ``model``
+    (the state dict on the CPU); ``load_model`` reads exactly these."""
+    return {"variant": variant, "network": config_dict(network), "input": config_dict(input_config),
+            "model": {k: v.detach().cpu() for k, v in net.state_dict().items()}}
 
 
 def model_card(data: dict[str, Any], name: str, size_bytes: int) -> str:

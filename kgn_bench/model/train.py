@@ -38,6 +38,7 @@ from kgn_bench.model.checkpoint import (
     dataset_identity,
     git_commit,
     load_checkpoint,
+    model_payload,
     save_checkpoint,
 )
 from kgn_bench.model.losses import LossWeights, kgn_loss
@@ -185,10 +186,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None) ->
 
     def payload(epoch: int, with_optimizer: bool) -> dict[str, Any]:
         p = {
-            "variant": variant.name,
-            "network": json.loads(json.dumps(asdict(cfg.network))),
-            "input": json.loads(json.dumps(asdict(cfg.input))),
-            "model": {k: v.detach().cpu() for k, v in net.state_dict().items()},
+            **model_payload(net, variant.name, cfg.network, cfg.input),
             "train": cfg.to_dict(),
             "dataset": identity,
             "git_commit": commit,
