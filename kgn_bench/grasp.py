@@ -11,12 +11,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kgn_bench.geometry import rotation_angle
+
 __all__ = [
     "FLIP_X180",
     "KEYPOINT_LINKS",
     "KEYPOINT_NAMES",
     "GraspSet",
     "flip_180",
+    "grasp_rotation_error",
     "keypoint_box",
     "keypoints_in_frame",
 ]
@@ -53,6 +56,12 @@ def keypoints_in_frame(poses: np.ndarray, sides: float | np.ndarray) -> np.ndarr
 def flip_180(poses: np.ndarray) -> np.ndarray:
     """The same grasps turned 180° about their approach axis: ``T · diag(1, −1, −1, 1)``."""
     return poses @ FLIP_X180
+
+
+def grasp_rotation_error(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Rotation error (rad) between grasp orientations that respects the 180° symmetry:
+    ``min(d(Ra, Rb), d(Ra, Rb · diag(1, −1, −1)))`` with d the geodesic angle; broadcast over stacks."""
+    return np.minimum(rotation_angle(Ra, Rb), rotation_angle(Ra, Rb @ FLIP_X180[:3, :3]))
 
 
 @dataclass(frozen=True)

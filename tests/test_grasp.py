@@ -39,3 +39,17 @@ def test_graspset_checks_shapes_and_filters():
     T = make_pose(t=[0, 0, 1])
     assert g.transformed(T).poses[0, 2, 3] == 1.0
     assert len(GraspSet.concatenate([g, g])) == 6
+
+
+def test_grasp_rotation_error_respects_the_180_degree_symmetry():
+    from kgn_bench.geometry import rot_x, rot_z
+    from kgn_bench.grasp import grasp_rotation_error
+
+    R = rot_z(0.3) @ rot_x(0.2)
+    assert grasp_rotation_error(R, R @ rot_x(np.pi)) == pytest.approx(0.0, abs=1e-7)
+    assert grasp_rotation_error(R, R @ rot_x(np.pi / 2)) == pytest.approx(np.pi / 2)
+    assert grasp_rotation_error(R, R @ rot_x(0.7 * np.pi)) == pytest.approx(0.3 * np.pi)
+    # about another axis the symmetry does not help
+    assert grasp_rotation_error(R, R @ rot_z(0.4)) == pytest.approx(0.4)
+    stack = grasp_rotation_error(np.stack([R, R]), np.stack([R, R @ rot_z(0.4)]))
+    np.testing.assert_allclose(stack, [0.0, 0.4], atol=1e-7)

@@ -34,8 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kgn_bench.config import ExecutionConfig, SelectorConfig
-from kgn_bench.geometry import rotation_angle
-from kgn_bench.grasp import flip_180
+from kgn_bench.grasp import flip_180, grasp_rotation_error
 from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q
@@ -141,7 +140,7 @@ def near_failed(poses: np.ndarray, failed: np.ndarray, distance: float, angle: f
     d = np.linalg.norm(poses[:, None, :3, 3] - failed[None, :, :3, 3], axis=-1)
     Ra = np.broadcast_to(poses[:, None, :3, :3], (len(poses), len(failed), 3, 3))
     Rb = np.broadcast_to(failed[None, :, :3, :3], Ra.shape)
-    rot = np.minimum(rotation_angle(Ra, Rb), rotation_angle(Ra, Rb @ np.diag([1.0, -1.0, -1.0])))
+    rot = grasp_rotation_error(Ra, Rb)
     return np.any((d < distance) & (rot < angle), axis=1)
 
 

@@ -55,8 +55,7 @@ import numpy as np
 from kgn_bench.data.format import DatasetError, SceneAnnotation, read_manifest, read_split, read_view, scene_dir
 from kgn_bench.data.generate import relabel_grasps
 from kgn_bench.detectors.base import Candidates, Detector, Observation
-from kgn_bench.geometry import rotation_angle
-from kgn_bench.grasp import FLIP_X180, GraspSet
+from kgn_bench.grasp import GraspSet, grasp_rotation_error
 from kgn_bench.progress import Progress
 from kgn_bench.shapes import EVAL_DENSITY, PRIMITIVES, GraspDensity
 
@@ -118,7 +117,7 @@ def pose_errors(pred: np.ndarray, gt: np.ndarray, max_translation: float = math.
     i, j = np.nonzero(d_t < max_translation)
     if len(i):
         Rp, Rg = pred[i, :3, :3], gt[j, :3, :3]
-        d_r[i, j] = np.minimum(rotation_angle(Rp, Rg), rotation_angle(Rp, Rg @ FLIP_X180[:3, :3]))
+        d_r[i, j] = grasp_rotation_error(Rp, Rg)
     return d_t, d_r
 
 
