@@ -62,7 +62,8 @@ def _cmd_data_generate(args) -> int:
 
 def _cmd_data_show(args) -> int:
     from kgn_bench.data.format import DatasetError
-    from kgn_bench.viz.draw import save_png, show_view
+    from kgn_bench.viz.draw import show_view
+    from kgn_bench.viz.plot import save_png
 
     try:
         image = show_view(args.dir, args.scene, args.view, box=args.box)
@@ -82,11 +83,16 @@ def _cmd_perf_data(args) -> int:
 
 def _cmd_run(args) -> int:
     from kgn_bench.bench.runner import RunError, run_benchmark
-    from kgn_bench.config import ConfigError, load_task, validate
+    from kgn_bench.config import ConfigError, apply_override, load_task, validate
 
     try:
         task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
         validate(task, str(args.task))
+        for setting in args.set or ():
+            key, sep, value = setting.partition("=")
+            if not sep:
+                raise ConfigError(f"--set {setting!r}: expected section.name=value")
+            task = apply_override(task, key.strip(), value.strip())
         out = args.out or Path("runs") / f"{task.name}_{args.detector}_seed{task.seed}"
         result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
                                progress=not args.quiet)
@@ -100,6 +106,24 @@ def _cmd_run(args) -> int:
         rate = t["trials_per_minute"]
         print(f"{result.ran} trials in {t['wall_s']:.1f} s ({rate} trials/min, {args.workers} workers)")
     print(f"wrote {out}/summary.json, summary.md" + (", recording.rrd" if args.record else ""))
+    return 0
+
+
+def _cmd_sweep(args) -> int:
+    from kgn_bench.bench.runner import RunError
+    from kgn_bench.bench.sweep import run_sweep, sweep_markdown
+    from kgn_bench.config import ConfigError, load_task, validate
+
+    try:
+        task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
+        validate(task, str(args.task))
+        out = args.out or Path("runs") / f"sweep_{task.name}_{args.detector}_{args.param}"
+        points = run_sweep(task, args.detector, args.param, args.values, out, workers=args.workers,
+                           progress=not args.quiet)
+    except (ConfigError, RunError, ValueError) as e:
+        return _fail(str(e))
+    print(sweep_markdown(task, args.detector, args.param, points))
+    print(f"wrote {out}/sweep.json, sweep.md and one run folder per value")
     return 0
 
 
@@ -211,7 +235,8 @@ def _cmd_eval_show(args) -> int:
     from kgn_bench.detectors import DetectorError
     from kgn_bench.detectors.kgn import KGNDetector
     from kgn_bench.model.checkpoint import CheckpointError
-    from kgn_bench.viz.draw import save_png, show_predictions
+    from kgn_bench.viz.draw import show_predictions
+    from kgn_bench.viz.plot import save_png
 
     try:
         detector = KGNDetector(args.variant, args.weights)
@@ -232,6 +257,40 @@ def _cmd_export(args) -> int:
     except CheckpointError as e:
         return _fail(str(e))
     print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
+    return 0
+
+
+def _cmd_study_pnp_noise(args) -> int:
+    from kgn_bench.eval.pnp_noise import PnpNoiseConfig, run_pnp_noise, write_pnp_noise
+
+    try:
+        config = PnpNoiseConfig(samples=args.samples, seed=args.seed, sigmas=tuple(args.sigmas))
+    except ValueError as e:
+        return _fail(str(e))
+    rows = run_pnp_noise(config)
+    print(f"{'box':<17} {'sigma':>5} {'d (m)':>6} {'rot mean':>9} {'rot med':>8} {'t mean':>8} {'t med':>7}  (deg, cm)")
+    for r in rows:
+        print(f"{r.box:<17} {r.sigma_px:>5g} {r.distance_m:>6.2f} {r.rot_mean_deg:>9.2f} {r.rot_median_deg:>8.2f} "
+              f"{r.trans_mean_cm:>8.2f} {r.trans_median_cm:>7.2f}")
+    paths = write_pnp_noise(rows, args.out)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _cmd_experiment(args) -> int:
+    from kgn_bench.data.format import DatasetError
+    from kgn_bench.detectors import DetectorError
+    from kgn_bench.eval.experiments import ExperimentError, build_table1, build_table2
+    from kgn_bench.model.checkpoint import CheckpointError
+
+    build = {"table1": build_table1, "table2": build_table2}[args.table]
+    data_dirs = {"single": args.single, "multi": args.multi}
+    try:
+        text, _ = build(data_dirs, args.out, views=args.views, partial=args.partial, force=args.force)
+    except (ExperimentError, CheckpointError, DatasetError, DetectorError, ValueError) as e:
+        return _fail(str(e))
+    print(text)
+    print(f"wrote {args.out}/vision_{args.table}.md, .json (per-model evaluations in {args.out}/vision/)")
     return 0
 
 
@@ -293,8 +352,22 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--workers", type=_int_at_least(1), default=1)
     run.add_argument("--record", action="store_true", help="write a rerun recording (recording.rrd)")
     run.add_argument("--out", type=Path, help="run folder (default runs/<task>_<detector>_seed<seed>)")
+    run.add_argument("--set", action="append", metavar="SECTION.NAME=VALUE",
+                     help="override one task setting, e.g. camera.depth_noise=1 (repeatable)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
+
+    sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)")
+    sw.add_argument("task", type=Path, help="task file (tasks/*.toml)")
+    sw.add_argument("--detector", required=True)
+    sw.add_argument("--param", required=True, help="setting to sweep, e.g. camera.depth_noise")
+    sw.add_argument("--values", nargs="+", required=True, help="values, e.g. 0 0.5 1 2")
+    sw.add_argument("--trials", type=_int_at_least(1), help="override the task's trial count")
+    sw.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
+    sw.add_argument("--workers", type=_int_at_least(1), default=1)
+    sw.add_argument("--out", type=Path, help="sweep folder (default runs/sweep_<task>_<detector>_<param>)")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    sw.set_defaults(func=_cmd_sweep)
 
     check = sub.add_parser("check", help="fail (exit 1) when a run's rates dropped below a baseline's")
     check.add_argument("run", type=Path, help="run folder holding summary.json")
@@ -338,6 +411,26 @@ def build_parser() -> argparse.ArgumentParser:
     shw.add_argument("--view", type=_int_at_least(0), default=0)
     shw.add_argument("--out", type=Path, required=True, help="PNG to write")
     shw.set_defaults(func=_cmd_eval_show)
+
+    st = sub.add_parser("study", help="synthetic studies")
+    ssub = st.add_subparsers(dest="study_command", required=True, parser_class=_Parser)
+    pn = ssub.add_parser("pnp-noise", help="the paper's Fig. 2: IPPE pose error vs distance under keypoint noise")
+    pn.add_argument("--samples", type=_int_at_least(1), default=2000, help="orientations per cell (default 2000)")
+    pn.add_argument("--sigmas", type=float, nargs="+", default=[1.0, 2.0, 4.0], help="noise levels px (default 1 2 4)")
+    pn.add_argument("--seed", type=_int_at_least(0), default=0)
+    pn.add_argument("--out", type=Path, default=Path("results/pnp_noise"), help="writes OUT.csv and OUT.png")
+    pn.set_defaults(func=_cmd_study_pnp_noise)
+
+    exp = sub.add_parser("experiment", help="the paper's dataset tables from trained weights (no retraining)")
+    exp.add_argument("table", choices=("table1", "table2"),
+                     help="table1: KGN vs KGNv2, single/multi x single/multi; table2: the ablation")
+    exp.add_argument("--single", type=Path, default=Path("data/ps_single"), help="single-object PS dataset")
+    exp.add_argument("--multi", type=Path, default=Path("data/ps_multi"), help="multi-object PS dataset")
+    exp.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N test views (default all)")
+    exp.add_argument("--out", type=Path, default=Path("results"), help="results folder (default results)")
+    exp.add_argument("--partial", action="store_true", help="build the table from the models that exist")
+    exp.add_argument("--force", action="store_true", help="re-evaluate even when a cached evaluation matches")
+    exp.set_defaults(func=_cmd_experiment)
     return p
 
 

@@ -16,7 +16,7 @@ import tomllib
 from kgn_bench.shapes import PRIMITIVES
 
 __all__ = ["PROTOCOLS", "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig",
-           "load_task"]
+           "apply_override", "load_task"]
 
 PROTOCOLS = ("single_object", "multi_object")
 SCORES = ("confidence_minus_error", "paper_literal")
@@ -30,12 +30,14 @@ class ConfigError(ValueError):
 class CameraConfig:
     """The fixed camera: on a sphere about ``target`` (world, m) at ``distance``, ``elevation_deg`` above
     the table plane and ``azimuth_deg`` (``sim.camera.orbit_pose``: 0 = on the +y side, 90 = on the −x
-    side, over the robot)."""
+    side, over the robot). ``depth_noise``: strength of the D435-like depth model (``sim.depth_noise``) applied
+    to every capture; 0 (the default) gives the renderer's exact depth, 1 the typical D435."""
 
     distance: float = 0.8
     elevation_deg: float = 60.0
     azimuth_deg: float = 90.0
     target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    depth_noise: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -197,9 +199,39 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         raise ConfigError(f"{where}: selector.point_stride must be ≥ 1, got {cfg.selector.point_stride}")
     if cfg.selector.score not in SCORES:
         raise ConfigError(f"{where}: selector.score must be one of {', '.join(SCORES)}, got {cfg.selector.score!r}")
+    if not 0.0 <= cfg.camera.depth_noise <= 10.0:
+        raise ConfigError(f"{where}: camera.depth_noise must be in [0, 10], got {cfg.camera.depth_noise}")
     if not 0.3 <= cfg.camera.distance <= 2.0:
         raise ConfigError(f"{where}: camera.distance must be in [0.3, 2.0] m, got {cfg.camera.distance}")
     if not 10.0 <= cfg.camera.elevation_deg <= 90.0:
         raise ConfigError(f"{where}: camera.elevation_deg must be in [10, 90], got {cfg.camera.elevation_deg}")
     if cfg.execution.max_consecutive_failures < 1:
         raise ConfigError(f"{where}: execution.max_consecutive_failures must be ≥ 1")
+
+
+_OVERRIDABLE = {"camera": CameraConfig, "selector": SelectorConfig, "execution": ExecutionConfig}
+
+
+def apply_override(cfg: TaskConfig, key: str, text: str) -> TaskConfig:
+    """``cfg`` with one setting replaced: ``key`` is ``section.name`` of the camera, selector or execution
+    section (e.g. ``camera.depth_noise``, ``selector.reprojection_weight``), ``text`` its value as typed on a
+    command line (a number, a word, or comma-separated numbers for a vector). Validated like a task file."""
+    section, _, name = key.partition(".")
+    if section not in _OVERRIDABLE or not name:
+        raise ConfigError(f"setting {key!r} must be section.name with section one of {', '.join(_OVERRIDABLE)}")
+    current = getattr(cfg, section)
+    if name not in {f.name for f in fields(current)}:
+        known = ", ".join(f"{section}.{f.name}" for f in fields(current))
+        raise ConfigError(f"unknown setting {key!r} (known: {known})")
+    default = getattr(current, name)
+    value: Any = text
+    if isinstance(default, (bool, int, float, tuple)):
+        try:
+            parsed = tomllib.loads(f"v = {text}" if not isinstance(default, tuple) else f"v = [{text}]")["v"]
+        except tomllib.TOMLDecodeError:
+            raise ConfigError(f"setting {key}: cannot read {text!r} as {type(default).__name__}") from None
+        value = parsed
+    value = _coerce(f"setting {key}", name, value, default)
+    out = replace(cfg, **{section: replace(current, **{name: value})})
+    validate(out, f"setting {key}={text}")
+    return out

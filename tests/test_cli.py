@@ -2,10 +2,13 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from kgn_bench.cli import main
+
+CI_TASK = str(Path(__file__).resolve().parents[1] / "tasks" / "ci_oracle.toml")
 
 
 @pytest.mark.parametrize(
@@ -17,6 +20,11 @@ from kgn_bench.cli import main
         (["data", "generate", "--mode", "multi"], "--out"),
         (["data", "show", "/nonexistent", "--scene", "0", "--out", "a.png"], "no dataset.json"),
         (["bogus"], "invalid choice"),
+        (["study", "pnp-noise", "--sigmas", "-1"], "noise levels must be non-negative"),
+        (["run", CI_TASK, "--detector", "oracle", "--set", "camera.depth_noise"], "expected section.name=value"),
+        (["run", CI_TASK, "--detector", "oracle", "--set", "camera.depth_noise=-2"], "depth_noise must be in"),
+        (["sweep", CI_TASK, "--detector", "oracle", "--param", "camera.fov", "--values", "1"], "unknown setting"),
+        (["experiment", "table1", "--multi", "/nonexistent", "--single", "/nonexistent"], "no complete"),
     ],
 )
 def test_bad_arguments_give_one_line_and_exit_2(argv, fragment, capsys, tmp_path):
@@ -29,6 +37,17 @@ def test_bad_arguments_give_one_line_and_exit_2(argv, fragment, capsys, tmp_path
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("kgn-bench: error:") and fragment in err
+
+
+def test_study_pnp_noise_writes_the_csv_and_the_figure(tmp_path, capsys):
+    import cv2
+
+    assert main(["study", "pnp-noise", "--samples", "50", "--sigmas", "1", "--out", str(tmp_path / "fig2")]) == 0
+    lines = (tmp_path / "fig2.csv").read_text().splitlines()
+    assert len(lines) == 1 + 2 * 13  # header + 2 boxes × 13 distances
+    img = cv2.imread(str(tmp_path / "fig2.png"))
+    assert img is not None and img.shape[1] > 1000
+    assert "scale_normalized" in capsys.readouterr().out
 
 
 def test_show_writes_a_png(tiny_dataset, tmp_path, capsys):

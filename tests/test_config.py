@@ -1,5 +1,6 @@
 """Task files: the shipped tasks load, and every kind of bad file is a ConfigError naming the file and the problem."""
 
+import re
 from pathlib import Path
 
 import pytest
@@ -162,3 +163,25 @@ def test_validate_checks_overrides():
     validate(t.with_overrides(trials=2), "cli")
     with pytest.raises(ConfigError, match=r"^cli: trials must be ≥ 1, got 0$"):
         validate(t.with_overrides(trials=0), "cli")
+
+
+def test_apply_override_sets_one_typed_value_and_validates_it():
+    from kgn_bench.config import apply_override
+
+    t = load_task(TASKS / "single_object.toml")
+    assert apply_override(t, "camera.depth_noise", "1.5").camera.depth_noise == 1.5
+    assert apply_override(t, "selector.reprojection_weight", "0").selector.reprojection_weight == 0.0
+    assert apply_override(t, "selector.score", "paper_literal").selector.score == "paper_literal"
+    assert apply_override(t, "camera.target", "0.1, 0, 0").camera.target == (0.1, 0.0, 0.0)
+    assert apply_override(t, "execution.max_consecutive_failures", "2").execution.max_consecutive_failures == 2
+    assert t.camera.depth_noise == 0.0  # the original is untouched
+    for key, value, fragment in [
+        ("camera.depth_noise", "loud", "cannot read 'loud' as float"),
+        ("camera.depth_noise", "-1", "camera.depth_noise must be in"),
+        ("camera.zoom", "1", "unknown setting 'camera.zoom'"),
+        ("robot.speed", "1", "section one of camera, selector, execution"),
+        ("selector.score", "best", "selector.score must be one of"),
+        ("execution.max_consecutive_failures", "1.5", "must be int"),
+    ]:
+        with pytest.raises(ConfigError, match=re.escape(fragment)):
+            apply_override(t, key, value)

@@ -24,6 +24,7 @@ from kgn_bench.detectors.oracle import on_table
 from kgn_bench.shapes import shape_class
 from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.control import IK, Executor
+from kgn_bench.sim.depth_noise import DepthNoise
 from kgn_bench.sim.placement import PlacementConfig, place_objects, settle
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.robot import PARK_Q, add_workcell
@@ -121,16 +122,21 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
     consecutive = 0
     failed: list[np.ndarray] = []  # grasps (world) that failed in this trial
+    noise = DepthNoise(task.camera.depth_noise) if task.camera.depth_noise > 0 else None
     with SceneRenderer(scene) as renderer:
         while len(attempts) < max_attempts and consecutive < task.execution.max_consecutive_failures:
             if not any(on_table(scene, i) for i in range(len(names))):
                 break
             t = time.perf_counter()
             view = renderer.render(cam)
-            obs = Observation(view.rgb, view.depth, scene.intrinsics, cam)
+            depth = view.depth
+            if noise is not None:
+                rng = np.random.default_rng([task.seed, index, len(attempts)])
+                depth = noise.apply(depth, scene.intrinsics.fx, rng)
+            obs = Observation(view.rgb, depth, scene.intrinsics, cam)
             t = clock.add("render", t)
             if recorder is not None:
-                recorder.log_observation(view.rgb, view.depth, scene.intrinsics.K, cam, scene.data.time)
+                recorder.log_observation(view.rgb, depth, scene.intrinsics.K, cam, scene.data.time)
             attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
                                            np.array(failed).reshape(-1, 4, 4))
             attempts.append(attempt)

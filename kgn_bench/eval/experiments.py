@@ -153,13 +153,13 @@ def _data_dir(test: str, data_dirs: DataDirs | None) -> Path:
 
 def _require(model: ModelSpec, test: str, data_dirs: DataDirs | None) -> tuple[Path, Path]:
     """The model's weights file and the test dataset folder; ``ExperimentError`` with the fix if absent."""
+    data = _data_dir(test, data_dirs)
+    if not (data / "test.txt").is_file():  # the split files are written last: the dataset is complete
+        raise ExperimentError(f"no complete {test}-object dataset at {data}: {DATASETS[test].command}")
     weights = WEIGHTS_DIR / f"{model.weights}.pt"
     if not weights.is_file():
         raise ExperimentError(f"no weights {weights.relative_to(WEIGHTS_DIR.parents[1])} for {model.name}: "
                               f"{model.commands}")
-    data = _data_dir(test, data_dirs)
-    if not (data / "test.txt").is_file():  # the split files are written last: the dataset is complete
-        raise ExperimentError(f"no complete {test}-object dataset at {data}: {DATASETS[test].command}")
     return weights, data
 
 

@@ -10,16 +10,11 @@ import numpy as np
 from kgn_bench.data.format import SceneAnnotation, read_view, scene_dir
 from kgn_bench.geometry import invert_pose, project
 from kgn_bench.grasp import KEYPOINT_LINKS, keypoints_in_frame
+from kgn_bench.viz.plot import PALETTE_RGB
 
 __all__ = ["PALETTE", "colorize_depth", "draw_grasps", "draw_keypoints", "show_predictions", "show_view"]
 
-PALETTE = np.array(
-    [
-        (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
-        (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207),
-    ],
-    dtype=np.uint8,
-)
+PALETTE = np.array(PALETTE_RGB, dtype=np.uint8)
 """Distinct RGB colours (matplotlib's tab10) used per object."""
 
 
@@ -139,9 +134,3 @@ def show_view(root: Path, scene: int, view: int, box: str = "width") -> np.ndarr
     _label(depth_img, f"depth {lo:.3f}-{hi:.3f} m (black = no return)")
     return np.hstack([img, depth_img])
 
-
-def save_png(path: Path, rgb: np.ndarray) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
-        raise OSError(f"could not write {path}")

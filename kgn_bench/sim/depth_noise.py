@@ -1,0 +1,105 @@
+"""A RealSense-D435-like degradation of rendered planar depth (sim facts §4.2).
+
+The D435 measures depth by stereo matching between a left (reference) and a right infrared imager a baseline
+``B`` = 50 mm apart. In the reference image a point at planar depth z has disparity d = f·B / z pixels and
+appears at column u − d in the right image. We model, on a depth image that is treated as the reference view
+(OpenCV axes, x to the right, the second imager at +B along x):
+
+1. **Axial noise** — Intel's RMS model: disparity noise of σ_d = ``subpixel`` px (0.08 for a textured target) in
+   the depth imager's pixels, i.e. σ_z = z² · σ_d / (f_d · B) with f_d the depth imager's focal length (384.2 px
+   at 640×480): 0.8 mm at 0.5 m, 2.7 mm at 0.8 m, 4.2 mm at 1.0 m. Applied in disparity, so it grows with z².
+2. **Occlusion shadows** — a pixel is invalid when the right imager cannot see it: some pixel to its right in
+   the same row, nearer to the camera, lands at or left of it in the right image (``u' − d' ≤ u − d`` for
+   ``u' > u``). This gives the band of missing depth left of every foreground edge, d_near − d_far wide.
+3. **Left-edge band** — pixels whose match would fall outside the right image (u − d < 0) are invalid: the
+   band along the left border, f·B / z wide.
+4. **Edge dropouts** — pixels next to a depth jump larger than ``edge_jump`` (3×3 neighbourhood) are dropped
+   with probability ``edge_dropout``, as the matcher fails on mixed windows.
+
+``strength`` s scales the noise: σ_d and the dropout probability are multiplied by s (the probability clipped
+to 1); shadows and the left band are geometric and present whenever s > 0; s = 0 returns the depth unchanged.
+Distances in metres; ``fx`` is the focal length (px) of the image being degraded, so disparities are measured in
+its pixels (f_d only sets the noise level). Invalid pixels are 0, as in the renderer's output.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DepthNoise", "occlusion_shadow"]
+
+
+def occlusion_shadow(depth: np.ndarray, fx: float, baseline: float) -> np.ndarray:
+    """Pixels (H, W) bool that the second imager, ``baseline`` m to the right, cannot see (occluded by a nearer
+    surface to their right in the same row) or whose match falls left of its image. ``depth`` planar z (m),
+    0 = no return (such pixels never occlude)."""
+    valid = depth > 0
+    with np.errstate(divide="ignore"):
+        disparity = np.where(valid, fx * baseline / np.where(valid, depth, 1.0), 0.0)
+    cols = np.arange(depth.shape[1], dtype=float)[None, :]
+    right = np.where(valid, cols - disparity, np.inf)  # column in the second image
+    # smallest right-image column of any pixel strictly to the right: reverse running minimum, shifted by one
+    suffix_min = np.minimum.accumulate(right[:, ::-1], axis=1)[:, ::-1]
+    beyond = np.concatenate([suffix_min[:, 1:], np.full((depth.shape[0], 1), np.inf)], axis=1)
+    occluded = valid & (beyond <= right)
+    outside = valid & (right < 0.0)
+    return occluded | outside
+
+
+def _near_jump(depth: np.ndarray, jump: float) -> np.ndarray:
+    """Valid pixels with a valid 8-neighbour whose depth differs by more than ``jump`` m."""
+    h, w = depth.shape
+    padded = np.pad(depth, 1, mode="edge")
+    out = np.zeros((h, w), dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dy == 0 and dx == 0:
+                continue
+            n = padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+            out |= (n > 0) & (np.abs(n - depth) > jump)
+    return out & (depth > 0)
+
+
+@dataclass(frozen=True)
+class DepthNoise:
+    """The D435-like model of the module docstring; ``strength`` 0 disables it."""
+
+    strength: float = 1.0
+    baseline: float = 0.05
+    depth_focal: float = 384.2
+    subpixel: float = 0.08
+    edge_jump: float = 0.02
+    edge_dropout: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.strength) and self.strength >= 0.0):
+            raise ValueError(f"depth noise strength must be ≥ 0, got {self.strength}")
+        if not (self.baseline > 0 and self.depth_focal > 0 and self.subpixel >= 0 and self.edge_jump > 0):
+            raise ValueError(f"invalid depth noise parameters {self}")
+        if not 0.0 <= self.edge_dropout <= 1.0:
+            raise ValueError(f"edge_dropout must be in [0, 1], got {self.edge_dropout}")
+
+    def axial_sigma(self, z: np.ndarray | float) -> np.ndarray:
+        """σ_z (m) of the axial noise at planar depth ``z`` (m): s · z² · subpixel / (f_d · B)."""
+        return self.strength * np.square(z) * self.subpixel / (self.depth_focal * self.baseline)
+
+    def apply(self, depth: np.ndarray, fx: float, rng: np.random.Generator) -> np.ndarray:
+        """A degraded copy of ``depth`` (H, W) float planar metres (0 = no return); ``fx`` px of this image."""
+        depth = np.asarray(depth)
+        if depth.ndim != 2 or not np.issubdtype(depth.dtype, np.floating):
+            raise ValueError(f"depth must be a 2-D float image, got {depth.shape} {depth.dtype}")
+        if self.strength == 0.0:
+            return depth.copy()
+        valid = depth > 0
+        invalid = occlusion_shadow(depth, fx, self.baseline)
+        p = min(1.0, self.strength * self.edge_dropout)
+        jumps = _near_jump(depth, self.edge_jump)
+        invalid |= jumps & (rng.random(depth.shape) < p)
+        # noise in the depth imager's disparity: d = f_d B / z, d' = d + N(0, (s σ_d)^2), z' = f_d B / d'
+        fb = self.depth_focal * self.baseline
+        disparity = fb / np.where(valid, depth, 1.0)
+        noisy = disparity + self.strength * self.subpixel * rng.standard_normal(depth.shape)
+        out = np.where(valid & ~invalid & (noisy > 0), fb / np.maximum(noisy, 1e-9), 0.0)
+        return out.astype(depth.dtype)
