@@ -28,11 +28,14 @@ test: setup
 	$(BIN)/ruff check kgn_bench tests
 	$(BIN)/pytest -q
 
-# CI's regression check: a tiny fixed-seed oracle task against the committed baseline.
+# The regression check that the test suite runs (tests/test_ci_regression.py), with its tables printed:
+# the fixed-seed clearance task with kgnv2 and the oracle against results/ci_baseline.json.
 regression: setup
-	rm -rf runs/ci_oracle
-	$(BIN)/kgn-bench run tasks/ci_oracle.toml --detector oracle --workers 2 --quiet --out runs/ci_oracle
-	$(BIN)/kgn-bench check runs/ci_oracle --baseline results/baseline_ci_oracle.json
+	for d in kgnv2 oracle; do \
+	  rm -rf runs/ci_regression_$$d; \
+	  $(BIN)/kgn-bench run tasks/ci_regression.toml --detector $$d --workers 2 --quiet --out runs/ci_regression_$$d \
+	    > /dev/null && $(BIN)/kgn-bench check runs/ci_regression_$$d --baseline results/ci_baseline.json || exit 1; \
+	done
 
 perf: setup
 	$(BIN)/kgn-bench perf data --scenes 40 --workers 2

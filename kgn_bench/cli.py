@@ -127,10 +127,43 @@ def _cmd_sweep(args) -> int:
     return 0
 
 
+def _cmd_report(args) -> int:
+    from kgn_bench.bench.report import ReportError, build_report, load_summaries
+
+    folders = []
+    for path in args.runs:  # a run folder, or a folder of run folders (e.g. runs/benchmark)
+        found = [path] if (path / "summary.json").is_file() else sorted(p.parent for p in path.rglob("summary.json"))
+        folders += found or [path]
+    try:
+        text, _ = build_report(load_summaries(folders), args.out)
+    except ReportError as e:
+        return _fail(str(e))
+    print(text)
+    print(f"wrote {args.out}/benchmark.md, benchmark.json, benchmark.png")
+    return 0
+
+
+def _cmd_benchmark(args) -> int:
+    from kgn_bench.bench.benchmark import load_plan, run_plan
+    from kgn_bench.bench.report import ReportError, build_report, load_summaries
+    from kgn_bench.bench.runner import RunError
+    from kgn_bench.config import ConfigError
+
+    try:
+        plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
+        folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet)
+        text, _ = build_report(load_summaries(folders), args.out or args.runs)
+    except (ConfigError, RunError, ReportError, ValueError) as e:
+        return _fail(str(e))
+    print(text)
+    print(f"wrote {args.out or args.runs}/benchmark.md, benchmark.json, benchmark.png")
+    return 0
+
+
 def _cmd_check(args) -> int:
     import json
 
-    from kgn_bench.bench.check import compare, format_check, write_baseline
+    from kgn_bench.bench.check import baseline_for, compare, format_check, write_baseline
 
     summary_path = args.run / "summary.json"
     if not summary_path.is_file():
@@ -146,7 +179,7 @@ def _cmd_check(args) -> int:
     if not args.baseline.is_file():
         return _fail(f"baseline {args.baseline} not found (write one with --update-baseline)")
     try:
-        baseline = json.loads(args.baseline.read_text())
+        baseline = baseline_for(json.loads(args.baseline.read_text()), summary.get("detector", ""))
         rows = compare(summary, baseline)
     except (json.JSONDecodeError, KeyError, ValueError) as e:
         return _fail(f"baseline {args.baseline} unusable: {e}")
@@ -368,6 +401,22 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--out", type=Path, help="sweep folder (default runs/sweep_<task>_<detector>_<param>)")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.set_defaults(func=_cmd_sweep)
+
+    bm = sub.add_parser("benchmark", help="run every task x detector of a plan, then write the report")
+    bm.add_argument("plan", type=Path, nargs="?", default=Path("tasks/benchmark.toml"),
+                    help="plan file (default tasks/benchmark.toml)")
+    bm.add_argument("--tasks", nargs="+", help="only these tasks of the plan")
+    bm.add_argument("--detectors", nargs="+", help="only these detectors of the plan")
+    bm.add_argument("--workers", type=_int_at_least(1), default=2)
+    bm.add_argument("--runs", type=Path, default=Path("runs/benchmark"), help="run folders (default runs/benchmark)")
+    bm.add_argument("--out", type=Path, help="report folder (default: the runs folder)")
+    bm.add_argument("--quiet", action="store_true", help="no progress bars")
+    bm.set_defaults(func=_cmd_benchmark)
+
+    rep = sub.add_parser("report", help="the benchmark table, failure reasons and bar chart from run folders")
+    rep.add_argument("runs", type=Path, nargs="+", help="run folders, or folders holding run folders")
+    rep.add_argument("--out", type=Path, default=Path("results"), help="report folder (default results)")
+    rep.set_defaults(func=_cmd_report)
 
     check = sub.add_parser("check", help="fail (exit 1) when a run's rates dropped below a baseline's")
     check.add_argument("run", type=Path, help="run folder holding summary.json")

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from kgn_bench.bench.check import baseline_from_summary, compare, format_check, write_baseline
+from kgn_bench.bench.check import baseline_for, baseline_from_summary, compare, format_check, write_baseline
 from kgn_bench.bench.stats import Rate
 from kgn_bench.cli import main
 
@@ -66,7 +66,22 @@ def test_baseline_keeps_identity_and_rates_only(tmp_path):
     assert b == {"task": "ci", "protocol": "single_object", "detector": "oracle", "seed": 0, "trials": 60,
                  "rates": s["rates"]}  # fmt: skip
     write_baseline(s, tmp_path / "b.json")
-    assert json.loads((tmp_path / "b.json").read_text()) == b
+    assert json.loads((tmp_path / "b.json").read_text()) == {"baselines": {"oracle": b}}
+
+
+def test_baseline_file_holds_one_entry_per_detector(tmp_path):
+    path = tmp_path / "b.json"
+    write_baseline(_summary(50, 60, detector="oracle"), path)
+    write_baseline(_summary(40, 60, detector="kgnv2"), path)
+    write_baseline(_summary(55, 60, detector="oracle"), path)  # replaces oracle's, keeps kgnv2's
+    doc = json.loads(path.read_text())
+    assert list(doc["baselines"]) == ["kgnv2", "oracle"]
+    assert baseline_for(doc, "oracle")["rates"]["success"]["k"] == 55
+    assert baseline_for(doc, "kgnv2")["rates"]["success"]["k"] == 40
+    with pytest.raises(ValueError, match=r"no baseline for detector 'random' \(it has: kgnv2, oracle\)"):
+        baseline_for(doc, "random")
+    single = baseline_from_summary(_summary(1, 2))
+    assert baseline_for(single, "anything") is single  # a one-baseline file
 
 
 def test_format_check_verdicts_and_identity_note():
@@ -93,7 +108,7 @@ def test_cli_check_exit_codes(tmp_path, capsys):
     assert main(["check", str(good), "--baseline", str(baseline)]) == 2  # no baseline yet
     assert "--update-baseline" in capsys.readouterr().err
     assert main(["check", str(good), "--baseline", str(baseline), "--update-baseline"]) == 0
-    assert json.loads(baseline.read_text())["rates"]["success"]["k"] == 60
+    assert json.loads(baseline.read_text())["baselines"]["oracle"]["rates"]["success"]["k"] == 60
     assert str(baseline) in capsys.readouterr().out
     assert main(["check", str(good), "--baseline", str(baseline)]) == 0
     assert "REGRESSION" not in capsys.readouterr().out
@@ -104,6 +119,9 @@ def test_cli_check_exit_codes(tmp_path, capsys):
     assert main(["check", str(good), "--baseline", str(baseline)]) == 1
     out = capsys.readouterr().out
     assert "REGRESSION" in out and "20/60" in out and "60/60" in out
+    (good / "summary.json").write_text(json.dumps(_summary(20, 60, detector="kgn")))
+    assert main(["check", str(good), "--baseline", str(baseline)]) == 2  # no baseline for this detector
+    assert "no baseline for detector 'kgn'" in capsys.readouterr().err
 
 
 def test_cli_check_bad_inputs(tmp_path, capsys):

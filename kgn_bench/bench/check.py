@@ -4,8 +4,11 @@ The test, per rate (success, and clear for clearance runs): a **regression** is 
 Wilson 95 % interval lies entirely below the baseline's, i.e. ``run.high < baseline.low``. Disjoint 95 %
 intervals correspond to a difference significant at well below the 5 % level, so random variation of a
 detector that did not change almost never fails the check, while a real drop of more than the combined
-interval half-widths does. Rates that rose or overlap pass. A baseline is a JSON file holding the run's
-identity and its ``rates`` (``{"k", "n", ...}`` each).
+interval half-widths does. Rates that rose or overlap pass.
+
+A baseline file holds one baseline per detector: ``{"baselines": {detector: {identity..., "rates": {...}}}}``
+with each rate as ``{"k", "n", ...}``; a run is compared with the entry of its own detector. (A file holding a
+single baseline at the top level is read too.)
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from kgn_bench.data.format import atomic_write_text
 
 from .stats import Rate
 
-__all__ = ["CheckRow", "baseline_from_summary", "compare", "format_check", "write_baseline"]
+__all__ = ["CheckRow", "baseline_for", "baseline_from_summary", "compare", "format_check", "write_baseline"]
 
 IDENTITY = ("task", "protocol", "detector", "seed", "trials")
 
@@ -59,5 +62,25 @@ def baseline_from_summary(summary: dict[str, Any]) -> dict[str, Any]:
     return {**{k: summary[k] for k in IDENTITY if k in summary}, "rates": summary["rates"]}
 
 
+def baseline_for(document: dict[str, Any], detector: str) -> dict[str, Any]:
+    """The baseline of ``detector`` in a baseline file's contents; ``ValueError`` naming those it has."""
+    if "baselines" not in document:
+        return document
+    try:
+        return document["baselines"][detector]
+    except KeyError:
+        have = ", ".join(sorted(document["baselines"])) or "none"
+        raise ValueError(f"no baseline for detector {detector!r} (it has: {have})") from None
+
+
 def write_baseline(summary: dict[str, Any], path: Path) -> None:
-    atomic_write_text(path, json.dumps(baseline_from_summary(summary), indent=2) + "\n")
+    """Set the baseline of the run's detector in ``path`` (created if missing), keeping the other detectors'."""
+    path = Path(path)
+    document: dict[str, Any] = {"baselines": {}}
+    if path.is_file():
+        old = json.loads(path.read_text())
+        if "baselines" in old:
+            document = old
+    document["baselines"][summary["detector"]] = baseline_from_summary(summary)
+    document["baselines"] = dict(sorted(document["baselines"].items()))
+    atomic_write_text(path, json.dumps(document, indent=2) + "\n")

@@ -17,6 +17,7 @@ from kgn_bench.config import TaskConfig, apply_override
 from kgn_bench.data.format import atomic_write_text
 
 from .runner import run_benchmark
+from .stats import Rate
 
 __all__ = ["SweepPoint", "run_sweep", "sweep_markdown"]
 
@@ -31,7 +32,7 @@ class SweepPoint:
 
 
 def _pct(rate: dict[str, Any]) -> str:
-    return f"{100 * rate['rate']:.1f} [{100 * rate['low']:.1f}, {100 * rate['high']:.1f}] ({rate['k']}/{rate['n']})"
+    return str(Rate.from_dict(rate)).replace(" %", "")
 
 
 def sweep_markdown(task: TaskConfig, detector: str, key: str, points: list[SweepPoint]) -> str:

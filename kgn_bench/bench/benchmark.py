@@ -1,0 +1,78 @@
+"""The whole benchmark in one command: every (task, detector) of a plan run into its own folder, then the report.
+
+A plan file (``tasks/benchmark.toml``)::
+
+    [benchmark]
+    tasks = ["single_object", "single_household", "multi_object", "multi_household"]   # tasks/<name>.toml
+    detectors = ["kgnv2", "kgn", "kgn_depth", "antipodal", "random", "oracle"]
+
+Task names are looked up beside the plan file. Runs go to ``RUNS/<task>/<detector>`` and resume like any run;
+all detectors see the same scenes because a trial's scene depends only on the task's seed and the trial index.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import tomllib
+
+from kgn_bench.config import ConfigError, TaskConfig, load_task
+
+from .runner import run_benchmark
+
+__all__ = ["BenchmarkPlan", "load_plan", "run_plan"]
+
+
+@dataclass(frozen=True)
+class BenchmarkPlan:
+    """Tasks (loaded) and detector names, in report order."""
+
+    tasks: tuple[TaskConfig, ...]
+    detectors: tuple[str, ...]
+
+
+def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] | None = None) -> BenchmarkPlan:
+    """Read a plan; ``tasks`` / ``detectors`` (if given) restrict it. ``ConfigError`` names the problem."""
+    from kgn_bench.detectors import DETECTORS
+
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such plan file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML ({e})") from None
+    section = raw.get("benchmark")
+    if not isinstance(section, dict) or set(raw) != {"benchmark"}:
+        raise ConfigError(f"{path}: a plan has exactly one [benchmark] table")
+    unknown = set(section) - {"tasks", "detectors"}
+    if unknown:
+        raise ConfigError(f"{path}: [benchmark] unknown key {sorted(unknown)[0]!r} (known: tasks, detectors)")
+    names = section.get("tasks")
+    dets = section.get("detectors")
+    for key, value in (("tasks", names), ("detectors", dets)):
+        if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+            raise ConfigError(f"{path}: [benchmark] {key} must be a non-empty list of names")
+    for chosen, available, what in ((tasks, names, "task"), (detectors, dets, "detector")):
+        for c in chosen or ():
+            if c not in available:
+                raise ConfigError(f"{what} {c!r} is not in {path} (plan: {', '.join(available)})")
+    for d in dets:
+        if d not in DETECTORS:
+            raise ConfigError(f"{path}: unknown detector {d!r} (known: {', '.join(sorted(DETECTORS))})")
+    names = [n for n in names if not tasks or n in tasks]
+    dets = [d for d in dets if not detectors or d in detectors]
+    loaded = tuple(load_task(path.parent / f"{n}.toml") for n in names)
+    return BenchmarkPlan(loaded, tuple(dets))
+
+
+def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True) -> list[Path]:
+    """Run every (task, detector) of ``plan`` into ``runs``/task/detector; returns the run folders."""
+    folders = []
+    for task in plan.tasks:
+        for det in plan.detectors:
+            folder = Path(runs) / task.name / det
+            run_benchmark(task, det, folder, workers=workers, progress=progress)
+            folders.append(folder)
+    return folders

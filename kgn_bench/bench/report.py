@@ -1,0 +1,186 @@
+"""The benchmark report: detectors × tasks from run folders, beside the paper's physical experiments.
+
+A run folder (``kgn-bench run``) holds ``summary.json`` with its task name, protocol, detector and rates. The
+report puts one row per detector and one column per (task, rate): single-object success on primitives and
+on household objects, multi-object success and clear rate, each as ``rate [Wilson 95 %] (k/n)``; then the
+failure reasons per detector summed over its runs, and the paper's real-robot figures (KGNv2 Tab. III and
+IV) in the columns that correspond to them. Writes ``benchmark.md``, ``benchmark.json`` and ``benchmark.png``
+(a grouped bar chart with interval whiskers).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from kgn_bench.data.format import atomic_write_text
+
+from .attempt import FAILURE_REASONS
+from .stats import Rate
+
+__all__ = ["COLUMNS", "DETECTOR_ORDER", "PAPER", "Column", "ReportError", "build_report", "load_summaries"]
+
+
+class ReportError(RuntimeError):
+    """A run folder that cannot be reported (missing or unreadable summary, two runs for one cell)."""
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column: ``rate`` (``success`` or ``clear``) of the runs of task ``task``."""
+
+    task: str
+    rate: str
+    label: str
+
+
+COLUMNS = (
+    Column("single_object", "success", "single, primitives"),
+    Column("single_household", "success", "single, household"),
+    Column("multi_object", "success", "multi success"),
+    Column("multi_object", "clear", "multi clear"),
+    Column("multi_household", "success", "multi (household mix) success"),
+    Column("multi_household", "clear", "multi (household mix) clear"),
+)
+"""Known columns in display order; runs of other tasks get columns named after the task."""
+
+DETECTOR_ORDER = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth", "antipodal", "random", "oracle")
+
+PAPER: dict[str, dict[tuple[str, str], tuple[float, float, int]]] = {
+    "kgnv2": {("single_household", "success"): (92.5, 6.7, 40),
+              ("multi_household", "success"): (80.0, 10.1, 0),
+              ("multi_household", "clear"): (96.0, 7.4, 50)},
+    "kgn": {("single_household", "success"): (87.5, 9.6, 40)},
+}
+"""The paper's real-robot figures: rate %, ± half-width of its 95 % interval, and trials (0 = not stated).
+Single-object (Tab. III): 8 household objects × 5 trials; multi-object (Tab. IV): 10 scenes × 5 objects."""
+
+PAPER_NOTE = (
+    "Paper rows: KGNv2 Tab. III / IV, a real 7-DoF arm with a RealSense D435 and eight household objects "
+    "(5 trials each; 10 cleared scenes of 5). Ours: simulated MuJoCo arm and gripper, primitive and "
+    "primitive-built household objects, more trials, the same detector weights for every task. The paper's "
+    "intervals are ± half-widths as printed; ours are Wilson 95 % intervals."
+)
+
+
+def _paper_cell(figure: tuple[float, float, int] | None) -> str:
+    if figure is None:
+        return "—"
+    v, h, n = figure
+    return f"{v:.1f} ± {h:.1f}" + (f" (n={n})" if n else "")
+
+
+def load_summaries(folders: list[Path]) -> list[dict[str, Any]]:
+    """The ``summary.json`` of each run folder, with ``run`` set to the folder."""
+    out = []
+    for folder in folders:
+        path = Path(folder) / "summary.json"
+        if not path.is_file():
+            raise ReportError(f"{folder}: no summary.json (run `kgn-bench run` into it first)")
+        try:
+            summary = json.loads(path.read_text())
+        except json.JSONDecodeError as e:
+            raise ReportError(f"{path}: not valid JSON ({e})") from None
+        missing = [k for k in ("task", "detector", "rates", "failures") if k not in summary]
+        if missing:
+            raise ReportError(f"{path}: not a run summary (no {', '.join(missing)})")
+        summary["run"] = str(folder)
+        out.append(summary)
+    return out
+
+
+def _columns(summaries: list[dict[str, Any]]) -> list[Column]:
+    present = {(s["task"], r) for s in summaries for r in s["rates"]}
+    cols = [c for c in COLUMNS if (c.task, c.rate) in present]
+    known = {c.task for c in COLUMNS}
+    for task in sorted({s["task"] for s in summaries} - known):
+        rates = ("success", "clear") if any(s["task"] == task and "clear" in s["rates"] for s in summaries) \
+            else ("success",)
+        cols += [Column(task, r, f"{task} {r}") for r in rates]
+    return cols
+
+
+def _detectors(summaries: list[dict[str, Any]]) -> list[str]:
+    names = {s["detector"] for s in summaries}
+    return [d for d in DETECTOR_ORDER if d in names] + sorted(names - set(DETECTOR_ORDER))
+
+
+def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tuple[str, dict[str, Any]]:
+    """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png}."""
+    if not summaries:
+        raise ReportError("no runs to report")
+    cells: dict[tuple[str, str], dict[str, Any]] = {}
+    for s in summaries:
+        key = (s["detector"], s["task"])
+        if key in cells:
+            raise ReportError(f"two runs of {s['task']} with {s['detector']}: {cells[key]['run']} and {s['run']}")
+        cells[key] = s
+    columns, detectors = _columns(summaries), _detectors(summaries)
+
+    def rate(det: str, col: Column) -> Rate | None:
+        s = cells.get((det, col.task))
+        return Rate.from_dict(s["rates"][col.rate]) if s and col.rate in s["rates"] else None
+
+    lines = ["# KGN-Bench closed-loop benchmark", "",
+             "Rates in % with Wilson 95 % intervals and (successes / attempts; for clear: removed / placed).", "",
+             "| detector | " + " | ".join(c.label for c in columns) + " |", "|---|" + "---|" * len(columns)]
+    for det in detectors:
+        lines.append(f"| {det} | " + " | ".join(str(r).replace(" %", "") if (r := rate(det, c)) else "—"
+                                               for c in columns) + " |")
+    for det, figures in PAPER.items():
+        shown = [figures.get((c.task, c.rate)) for c in columns]
+        if any(shown):
+            lines.append(f"| {det} (paper, real robot) | " + " | ".join(_paper_cell(f) for f in shown) + " |")
+    if any(figures.get((c.task, c.rate)) for figures in PAPER.values() for c in columns):
+        lines += ["", PAPER_NOTE]
+    lines += ["", "## Failure reasons (attempts, all tasks)", "",
+              "| detector | attempts | " + " | ".join(FAILURE_REASONS) + " |",
+              "|---|---:|" + "---:|" * len(FAILURE_REASONS)]
+    failures = {}
+    for det in detectors:
+        runs = [s for s in summaries if s["detector"] == det]
+        counts = {r: sum(s["failures"].get(r, 0) for s in runs) for r in FAILURE_REASONS}
+        failures[det] = counts
+        attempts = sum(s.get("attempts", 0) for s in runs)
+        lines.append(f"| {det} | {attempts} | " + " | ".join(str(counts[r]) for r in FAILURE_REASONS) + " |")
+    lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries)]
+    text = "\n".join(lines) + "\n"
+    payload = {
+        "columns": [{"task": c.task, "rate": c.rate, "label": c.label} for c in columns],
+        "detectors": {det: {c.label: (rate(det, c).to_dict() if rate(det, c) else None) for c in columns}
+                      for det in detectors},
+        "failures": failures,
+        "paper": {det: {f"{t}/{r}": {"rate": v, "half_width": h, "trials": n} for (t, r), (v, h, n) in f.items()}
+                  for det, f in PAPER.items()},
+        "runs": [s["run"] for s in summaries],
+    }
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(out / "benchmark.md", text)
+        atomic_write_text(out / "benchmark.json", json.dumps(payload, indent=1) + "\n")
+        _chart(detectors, columns, rate, out / "benchmark.png")
+    return text, payload
+
+
+def _chart(detectors: list[str], columns: list[Column], rate, path: Path) -> None:
+    from kgn_bench.viz.plot import PALETTE_RGB, Bar, bar_chart, save_png
+
+    bars = []
+    for c in columns:
+        row = []
+        for det in detectors:
+            r = rate(det, c)
+            if r is None:
+                row.append(None)
+                continue
+            lo, hi = r.interval
+            row.append(Bar(100 * r.value, 100 * lo, 100 * hi, f"{100 * r.value:.0f}"))
+        bars.append(row)
+    width = max(900, 160 * len(columns) + 200)
+    image = bar_chart([c.label for c in columns], detectors, bars, PALETTE_RGB[: max(1, len(detectors))],
+                      title="KGN-Bench closed loop: success / clear rate with Wilson 95 % intervals",
+                      ylabel="rate (%)", size=(width, 520), ylim=(0.0, 105.0))
+    save_png(path, image)
