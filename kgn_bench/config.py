@@ -13,7 +13,7 @@ from typing import Any
 
 import tomllib
 
-from kgn_bench.shapes import PRIMITIVES
+from kgn_bench.shapes import OBJECTS, PRIMITIVES
 
 __all__ = ["PROTOCOLS", "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig",
            "apply_override", "load_task"]
@@ -58,6 +58,9 @@ class SelectorConfig:
     shadow_margin: float = 0.01
     retry_distance: float = 0.02
     retry_angle_deg: float = 30.0
+    approach_search: float = 0.03
+    closing_search: float = 0.01
+    search_step: float = 0.005
 
 
 @dataclass(frozen=True)
@@ -170,8 +173,8 @@ def load_task(path: str | Path) -> TaskConfig:
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
         raise ConfigError(f"{path}: [objects] set must be a non-empty list of object names")
     for n in names:
-        if n not in PRIMITIVES:
-            raise ConfigError(f"{path}: unknown object {n!r} (known: {', '.join(PRIMITIVES)})")
+        if n not in OBJECTS:
+            raise ConfigError(f"{path}: unknown object {n!r} (known: {', '.join(OBJECTS)})")
     if not isinstance(per_scene, int) or isinstance(per_scene, bool) or per_scene < 1:
         raise ConfigError(f"{path}: [objects] per_scene must be a positive integer, got {per_scene!r}")
     cfg = TaskConfig(
@@ -195,6 +198,11 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         raise ConfigError(f"{where}: selector.shadow_margin must be ≥ 0, got {cfg.selector.shadow_margin}")
     if cfg.selector.retry_distance < 0 or not 0 <= cfg.selector.retry_angle_deg <= 180:
         raise ConfigError(f"{where}: selector.retry_distance must be ≥ 0 and retry_angle_deg in [0, 180]")
+    sel = cfg.selector
+    if min(sel.approach_search, sel.closing_search) < 0 or sel.search_step < 0:
+        raise ConfigError(f"{where}: selector.approach_search, closing_search and search_step must be ≥ 0")
+    if (sel.approach_search > 0 or sel.closing_search > 0) and not 0.0005 <= sel.search_step <= 0.05:
+        raise ConfigError(f"{where}: selector.search_step must be in [0.0005, 0.05] m, got {sel.search_step}")
     if cfg.selector.point_stride < 1:
         raise ConfigError(f"{where}: selector.point_stride must be ≥ 1, got {cfg.selector.point_stride}")
     if cfg.selector.score not in SCORES:

@@ -6,7 +6,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from kgn_bench.bench.selector import REJECTIONS, DepthView, near_failed, score_candidates, select_grasp
+from kgn_bench.bench.selector import (
+    REJECTIONS,
+    DepthView,
+    near_failed,
+    score_candidates,
+    search_offsets,
+    select_grasp,
+)
 from kgn_bench.config import ExecutionConfig, SelectorConfig
 from kgn_bench.geometry import make_pose, rot_z
 from kgn_bench.gripper import GRIPPER
@@ -16,7 +23,8 @@ from kgn_bench.sim.robot import READY_Q
 HEIGHT = 0.05
 FAR = np.array([0.45, 0.0])  # the second box: 1 m from the arm base
 EXEC = ExecutionConfig()
-CFG = SelectorConfig()
+CFG = SelectorConfig(approach_search=0.0, closing_search=0.0)  # the checks at each candidate's own pose
+SEARCH = SelectorConfig()  # the default: shifted poses are tried too
 # top-down grasp frame: approach x = world −z, closing z = world +y, y = z × x = world −x
 DOWN = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
 
@@ -216,3 +224,33 @@ def test_palm_in_unseen_space_is_rejected(points, ik):
     # a surface at the table top hides nothing the gripper occupies
     seen = DepthView(np.full((480, 640), 1.0, np.float32), K, DOWN_CAM)
     assert select_grasp(*args, seen).index == 0
+
+
+def test_search_offsets_are_a_grid_nearest_first():
+    off = search_offsets(SEARCH)
+    assert len(off) == 13 * 5 and tuple(off[0]) == (0.0, 0.0)
+    norms = np.hypot(off[:, 0], off[:, 1])
+    assert np.all(np.diff(norms) >= -1e-12)
+    assert np.abs(off[:, 0]).max() == pytest.approx(0.03) and np.abs(off[:, 1]).max() == pytest.approx(0.01)
+    assert len(search_offsets(CFG)) == 1
+    assert len(search_offsets(replace(SEARCH, closing_search=0.0))) == 13
+
+
+def test_a_grasp_too_deep_or_off_centre_is_shifted_to_a_feasible_pose(points, ik):
+    # 2 cm too far along the approach: the fingertips would enter the table (a scale error of a detector)
+    deep = _pose((0.0, 0.0, -0.02))
+    assert _select([deep], [0.06], points, ik).rejected["collision"] == 1
+    sel = _select([deep], [0.06], points, ik, cfg=SEARCH)
+    assert sel.index == 0 and sel.rejected["collision"] == 0
+    # moved back up along −x by the smallest feasible step (2.5 cm), then down to the fingertips' clearance
+    assert sel.grasp[2, 3] == pytest.approx(SEARCH.table_clearance, abs=1e-9)
+    np.testing.assert_allclose(sel.grasp[:3, 0], deep[:3, 0])  # same approach (either 180° form)
+    # 1 cm off-centre along the closing axis with a tight opening: a finger lands on the box top
+    side = _pose((0.0, 0.012, 0.02))
+    assert _select([side], [0.045], points, ik).rejected["collision"] == 1
+    sel = _select([side], [0.045], points, ik, cfg=SEARCH)
+    assert sel.index == 0 and abs(sel.grasp[1, 3]) < 0.012 - 0.004
+    # nothing to shift onto: empty space stays rejected, and is counted once
+    empty = _pose((0.25, 0.2, 0.02))
+    sel = _select([empty], [0.06], points, ik, cfg=SEARCH)
+    assert sel.index is None and sel.rejected["enclosure"] == 1 and sum(sel.rejected.values()) == 1

@@ -21,6 +21,11 @@ form) of a grasp that already failed in this trial (``failed``, world poses as e
 is skipped: a deterministic detector would otherwise retry the same failing grasp until the consecutive
 failure limit ends the scene.
 
+Checks 2-4 are tried at the candidate's pose and, if it fails one, at poses shifted in its own frame along the
+approach (±``approach_search``) and the closing axis (±``closing_search``) in steps of ``search_step``, nearest
+shift first: a detector whose pose is right but whose distance to the camera is a centimetre or two off (a
+scale error) still yields the grasp it meant. The shifted pose is the one executed.
+
 The observed points come from the depth image (world frame), never from the simulator. Poses are world
 frame ``T_world_grasp``. Each candidate is tried in both of its 180°-symmetric forms (the one closer to the
 arm's ready wrist first). The executed grasp is pushed ``grasp_depth`` further along its approach when the
@@ -39,7 +44,7 @@ from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q
 
-__all__ = ["REJECTIONS", "DepthView", "Selection", "near_failed", "score_candidates", "select_grasp"]
+__all__ = ["REJECTIONS", "DepthView", "Selection", "near_failed", "score_candidates", "search_offsets", "select_grasp"]
 
 REJECTIONS = ("repeat", "width", "collision", "occluded", "enclosure", "ik")
 
@@ -144,12 +149,39 @@ def near_failed(poses: np.ndarray, failed: np.ndarray, distance: float, angle: f
     return np.any((d < distance) & (rot < angle), axis=1)
 
 
+def search_offsets(cfg: SelectorConfig) -> np.ndarray:
+    """Grasp-frame shifts (dx along the approach, dz along the closing axis), metres, (K, 2): every multiple of
+    ``search_step`` with |dx| ≤ ``approach_search`` and |dz| ≤ ``closing_search``, nearest first ((0, 0) first)."""
+    step = cfg.search_step
+    nx = int(np.floor(cfg.approach_search / step + 1e-9)) if step > 0 else 0
+    nz = int(np.floor(cfg.closing_search / step + 1e-9)) if step > 0 else 0
+    grid = np.array([(i * step, j * step) for i in range(-nx, nx + 1) for j in range(-nz, nz + 1)])
+    return grid[np.lexsort((grid[:, 1], grid[:, 0], np.hypot(grid[:, 0], grid[:, 1])))]
+
+
+def _check(pose: np.ndarray, open_w: float, width: float, local: np.ndarray, boxes: list[GripperBox],
+           palm_samples: np.ndarray, view: DepthView | None, cfg: SelectorConfig) -> str | None:
+    """The first gripper-prior check (collision, occluded, enclosure) that ``pose`` fails, None if it passes.
+    ``local``: observed points in the grasp frame of ``pose``."""
+    corners = np.concatenate([box_corners(b, pose[None])[0] for b in boxes])
+    hits = sum(_count_inside(local, b) for b in boxes)
+    if corners[:, 2].min() < cfg.table_clearance - 1e-6 or hits >= cfg.collision_points:
+        return "collision"
+    if view is not None and np.any(view.hidden(palm_samples @ pose[:3, :3].T + pose[:3, 3], cfg.shadow_margin)):
+        return "occluded"
+    if _count_inside(local, GRIPPER.closing_region(width)) < cfg.enclosed_points:
+        return "enclosure"
+    return None
+
+
 def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
                  points: np.ndarray, ik: IK, cfg: SelectorConfig, execution: ExecutionConfig,
                  failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
     """Pick the best feasible candidate among world-frame ``poses`` given observed world ``points``,
     skipping candidates near the ``failed`` (K, 4, 4) world grasps of earlier attempts; ``view`` (the
-    depth image the points came from) enables the occlusion check."""
+    depth image the points came from) enables the occlusion check. A candidate that fails the gripper prior
+    where it is is tried shifted by ``search_offsets`` (the first shift that passes is kept); its rejection is
+    counted under the check its unshifted pose failed."""
     scores = score_candidates(confidences, errors, cfg)
     sel = Selection(index=None, scores=scores)
     order = np.argsort(-scores, kind="stable")[: cfg.max_candidates]
@@ -158,6 +190,8 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
     palm_samples = np.concatenate([_box_samples(_swept(b, back)) for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])
     repeat = near_failed(poses, np.zeros((0, 4, 4)) if failed is None else failed, cfg.retry_distance,
                          np.deg2rad(cfg.retry_angle_deg))
+    offsets = search_offsets(cfg)
+    reach = 0.35 + float(np.abs(offsets).max(initial=0.0)) + execution.grasp_depth
     for k in order:
         if repeat[k]:
             sel.rejected["repeat"] += 1
@@ -167,23 +201,24 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
             sel.rejected["width"] += 1
             continue
         open_w = min(w + 0.01, GRIPPER.max_width)
-        pose = poses[k]
-        depth = _grasp_depth(pose, open_w, execution.grasp_depth, cfg.table_clearance)
-        pose = pose.copy()
-        pose[:3, 3] += depth * pose[:3, 0]
         boxes = [_swept(b, back) for b in GRIPPER.boxes(open_w)]
-        corners = np.concatenate([box_corners(b, pose[None])[0] for b in boxes])
-        near = points[np.linalg.norm(points - pose[:3, 3], axis=1) < 0.35]
-        local = (near - pose[:3, 3]) @ pose[:3, :3]
-        hits = sum(_count_inside(local, b) for b in boxes)
-        if corners[:, 2].min() < cfg.table_clearance - 1e-6 or hits >= cfg.collision_points:
-            sel.rejected["collision"] += 1
-            continue
-        if view is not None and np.any(view.hidden(palm_samples @ pose[:3, :3].T + pose[:3, 3], cfg.shadow_margin)):
-            sel.rejected["occluded"] += 1
-            continue
-        if _count_inside(local, GRIPPER.closing_region(w)) < cfg.enclosed_points:
-            sel.rejected["enclosure"] += 1
+        R = poses[k][:3, :3]
+        near = points[np.linalg.norm(points - poses[k][:3, 3], axis=1) < reach]
+        local0 = (near - poses[k][:3, 3]) @ R  # observed points in the candidate's grasp frame
+        first_failure, pose = None, None
+        for dx, dz in offsets:
+            shifted = poses[k].copy()
+            shifted[:3, 3] += dx * R[:, 0] + dz * R[:, 2]
+            depth = _grasp_depth(shifted, open_w, execution.grasp_depth, cfg.table_clearance)
+            shifted[:3, 3] += depth * R[:, 0]
+            local = local0 - np.array([dx + depth, 0.0, dz])
+            failure = _check(shifted, open_w, w, local, boxes, palm_samples, view, cfg)
+            first_failure = first_failure or failure
+            if failure is None:
+                pose = shifted
+                break
+        if pose is None:
+            sel.rejected[first_failure] += 1
             continue
         flipped = flip_180(pose[None])[0]
         forms = (pose, flipped) if pose[:3, 2] @ ready_closing >= 0 else (flipped, pose)

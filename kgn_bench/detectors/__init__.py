@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from .antipodal import AntipodalDetector
 from .base import Candidates, Detector, DetectorError, Observation
 from .oracle import OracleDetector
 from .random import RandomDetector
@@ -25,6 +26,7 @@ LEARNED = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth")
 """Detectors backed by trained weights (one per model variant)."""
 
 DETECTORS: dict[str, Callable[..., Detector]] = {
+    "antipodal": AntipodalDetector,
     "oracle": OracleDetector,
     "random": RandomDetector,
     **{v: _learned(v) for v in LEARNED},

@@ -1,0 +1,54 @@
+"""Benchmark plans: validation with one-line errors, and a tiny real plan run end to end into a report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from kgn_bench.bench.benchmark import load_plan
+from kgn_bench.cli import main
+from kgn_bench.config import ConfigError
+
+TASKS = Path(__file__).resolve().parents[1] / "tasks"
+
+
+def test_shipped_plan_loads_and_can_be_restricted():
+    plan = load_plan(TASKS / "benchmark.toml")
+    assert "kgnv2" in plan.detectors and "oracle" in plan.detectors
+    assert [t.name for t in plan.tasks][:1] == ["single_object"]
+    only = load_plan(TASKS / "benchmark.toml", tasks=["multi_object"], detectors=["kgnv2"])
+    assert [t.name for t in only.tasks] == ["multi_object"] and only.detectors == ("kgnv2",)
+
+
+@pytest.mark.parametrize("body, fragment", [
+    ("[benchmark]\ntasks = []\ndetectors = ['oracle']", "tasks must be a non-empty list"),
+    ("[benchmark]\ntasks = ['ci_oracle']\ndetectors = ['telepathy']", "unknown detector 'telepathy'"),
+    ("[benchmark]\ntasks = ['nope']\ndetectors = ['oracle']", "no such task file"),
+    ("[benchmark]\ntasks = ['ci_oracle']\ndetectors = ['oracle']\nspeed = 2", "unknown key 'speed'"),
+    ("[bench]\ntasks = ['ci_oracle']", "exactly one [benchmark] table"),
+])
+def test_bad_plans_name_the_problem(tmp_path, body, fragment):
+    plan = tmp_path / "plan.toml"
+    plan.write_text(body)
+    (tmp_path / "ci_oracle.toml").write_text((TASKS / "ci_oracle.toml").read_text())
+    with pytest.raises(ConfigError, match=fragment.replace("[", r"\[").replace("]", r"\]")):
+        load_plan(plan)
+
+
+def test_tiny_plan_runs_every_pair_and_reports(tmp_path, capsys):
+    task = (TASKS / "ci_oracle.toml").read_text()
+    task = task.replace('name = "ci_oracle"', 'name = "tiny"')
+    (tmp_path / "tiny.toml").write_text(task.split("[objects]")[0] + '[objects]\nset = ["sphere", "cuboid"]\n')
+    plan = tmp_path / "plan.toml"
+    plan.write_text("[benchmark]\ntasks = ['tiny']\ndetectors = ['random', 'oracle']\n")
+    rc = main(["benchmark", str(plan), "--runs", str(tmp_path / "runs"), "--workers", "1", "--quiet"])
+    assert rc == 0
+    for det in ("random", "oracle"):
+        assert (tmp_path / "runs" / "tiny" / det / "summary.json").is_file()
+    out = capsys.readouterr().out
+    assert "| random |" in out and "| oracle |" in out
+    assert (tmp_path / "runs" / "benchmark.png").is_file()
+    # the report command rebuilds it from the folder of runs
+    assert main(["report", str(tmp_path / "runs"), "--out", str(tmp_path / "rep")]) == 0
+    assert (tmp_path / "rep" / "benchmark.md").read_text().count("| oracle |") == 2  # table + failures
