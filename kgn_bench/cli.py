@@ -93,7 +93,7 @@ def _cmd_run(args) -> int:
             if not sep:
                 raise ConfigError(f"--set {setting!r}: expected section.name=value")
             task = apply_override(task, key.strip(), value.strip())
-        out = args.out or Path("runs") / f"{task.name}_{args.detector}_seed{task.seed}"
+        out = args.out or Path("runs") / f"{task.name}_{args.detector.replace(':', '.')}_seed{task.seed}"
         result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
                                progress=not args.quiet)
     except (ConfigError, RunError, ValueError) as e:
@@ -379,7 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)")
     run.add_argument("task", type=Path, help="task file (tasks/*.toml)")
-    run.add_argument("--detector", required=True, help="oracle, random, ...")
+    run.add_argument("--detector", required=True,
+                     help="kgnv2, kgn, kgn_depth, antipodal, random, oracle, ... or module:attribute for your own")
     run.add_argument("--trials", type=_int_at_least(1), help="override the task's trial count")
     run.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
     run.add_argument("--workers", type=_int_at_least(1), default=1)

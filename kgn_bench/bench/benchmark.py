@@ -34,7 +34,7 @@ class BenchmarkPlan:
 
 def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] | None = None) -> BenchmarkPlan:
     """Read a plan; ``tasks`` / ``detectors`` (if given) restrict it. ``ConfigError`` names the problem."""
-    from kgn_bench.detectors import DETECTORS
+    from kgn_bench.detectors import detector_factory
 
     path = Path(path)
     try:
@@ -59,8 +59,10 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
             if c not in available:
                 raise ConfigError(f"{what} {c!r} is not in {path} (plan: {', '.join(available)})")
     for d in dets:
-        if d not in DETECTORS:
-            raise ConfigError(f"{path}: unknown detector {d!r} (known: {', '.join(sorted(DETECTORS))})")
+        try:
+            detector_factory(d)
+        except ValueError as e:
+            raise ConfigError(f"{path}: {e}") from None
     names = [n for n in names if not tasks or n in tasks]
     dets = [d for d in dets if not detectors or d in detectors]
     loaded = tuple(load_task(path.parent / f"{n}.toml") for n in names)

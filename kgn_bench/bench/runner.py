@@ -163,10 +163,9 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
     """Run (or finish) ``task`` with ``detector`` into ``out``; writes the summaries; returns them."""
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
-    from kgn_bench.detectors import DETECTORS
+    from kgn_bench.detectors import detector_factory
 
-    if detector not in DETECTORS:
-        raise ValueError(f"unknown detector {detector!r}; known: {', '.join(sorted(DETECTORS))}")
+    detector_factory(detector)  # an unknown name or a module that does not import fails here, before any trial
     out = Path(out)
     identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
     _prepare(out, identity)

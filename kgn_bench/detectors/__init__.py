@@ -1,7 +1,13 @@
-"""Grasp detectors behind one protocol (``base.Detector``) and a registry by name."""
+"""Grasp detectors behind one protocol (``base.Detector``) and a registry by name.
+
+A detector is named either by its registered name (``DETECTORS``) or, for one's own detector outside this
+package, by ``module:attribute`` (e.g. ``my_lab.grasping:MyDetector``): a class or function in an importable
+module that returns an object following ``base.Detector`` when called without arguments.
+"""
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 
 from .antipodal import AntipodalDetector
@@ -9,8 +15,8 @@ from .base import Candidates, Detector, DetectorError, Observation
 from .oracle import OracleDetector
 from .random import RandomDetector
 
-__all__ = ["DETECTORS", "LEARNED", "Candidates", "Detector", "DetectorError", "Observation", "make_detector"]
-
+__all__ = ["DETECTORS", "LEARNED", "Candidates", "Detector", "DetectorError", "Observation", "detector_factory",
+           "make_detector"]
 
 
 def _learned(variant: str) -> Callable[..., Detector]:
@@ -33,13 +39,36 @@ DETECTORS: dict[str, Callable[..., Detector]] = {
 }
 
 
+def detector_factory(name: str) -> Callable[..., Detector]:
+    """The factory of ``name``: a registered detector, or ``module:attribute`` imported from the Python path;
+    ``ValueError`` naming the problem (unknown name, module that fails to import, missing attribute)."""
+    if name in DETECTORS:
+        return DETECTORS[name]
+    module, sep, attribute = name.partition(":")
+    if not sep:
+        raise ValueError(f"unknown detector {name!r}; known: {', '.join(sorted(DETECTORS))} "
+                         "(or module:attribute for your own)")
+    try:
+        factory = getattr(importlib.import_module(module), attribute)
+    except ImportError as e:
+        raise ValueError(f"detector {name!r}: cannot import {module!r} ({e})") from None
+    except AttributeError:
+        raise ValueError(f"detector {name!r}: module {module!r} has no {attribute!r}") from None
+    if not callable(factory):
+        raise ValueError(f"detector {name!r}: {attribute!r} is not a class or function")
+    return factory
+
+
 def make_detector(name: str, weights=None) -> Detector:
-    """The detector registered as ``name`` (learned ones with ``weights``: a name under assets/weights or a
-    path; default the shipped weights); a clear error listing the known names otherwise."""
-    if name not in DETECTORS:
-        raise ValueError(f"unknown detector {name!r}; known: {', '.join(sorted(DETECTORS))}")
+    """The detector ``name`` (see the module docstring); learned ones take ``weights`` (a name under
+    assets/weights or a path; default the shipped weights). Raises ``ValueError`` with the reason."""
+    factory = detector_factory(name)
     if name in LEARNED:
-        return DETECTORS[name](weights)
+        return factory(weights)
     if weights is not None:
         raise ValueError(f"detector {name!r} takes no weights")
-    return DETECTORS[name]()
+    detector = factory()
+    missing = [a for a in ("name", "privileged", "reset", "detect") if not hasattr(detector, a)]
+    if missing:
+        raise ValueError(f"detector {name!r} lacks {', '.join(missing)} (see kgn_bench.detectors.base.Detector)")
+    return detector
