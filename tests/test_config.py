@@ -14,9 +14,9 @@ HEAD = '[task]\nname = "t"\nprotocol = "single_object"\n'
 
 def test_single_object_task():
     t = load_task(TASKS / "single_object.toml")
-    assert (t.name, t.protocol, t.seed, t.trials) == ("single_object", "single_object", 0, 10)
+    assert (t.name, t.protocol, t.seed, t.trials) == ("single_object", "single_object", 0, 20)
     assert t.objects == ("cuboid", "cylinder", "ring", "stick", "sphere", "semi_sphere")
-    assert t.n_trials == 60  # trials per object × objects
+    assert t.n_trials == 120  # trials per object × objects
     assert t.camera.distance == 0.8 and t.camera.elevation_deg == 60.0 and t.camera.azimuth_deg == 90.0
     assert isinstance(t.camera.distance, float)
     assert t.selector.score == "confidence_minus_error" and t.selector.reprojection_weight == 0.02
@@ -25,9 +25,9 @@ def test_single_object_task():
 
 def test_multi_object_task():
     t = load_task(TASKS / "multi_object.toml")
-    assert (t.name, t.protocol, t.trials, t.objects_per_scene) == ("multi_object", "multi_object", 10, 5)
+    assert (t.name, t.protocol, t.trials, t.objects_per_scene) == ("multi_object", "multi_object", 30, 5)
     assert set(t.objects) == set(PRIMITIVES)
-    assert t.n_trials == 10  # scenes, not scenes × objects
+    assert t.n_trials == 30  # scenes, not scenes × objects
 
 
 def test_ci_oracle_task_and_overrides():

@@ -240,10 +240,10 @@ def test_objects_settle_in_every_rest_pose(name):
 def test_task_files_and_config_names(tmp_path):
     single = load_task(TASKS / "single_household.toml")
     reference = load_task(TASKS / "single_object.toml")
-    assert single.protocol == "single_object" and single.objects == tuple(HOUSEHOLD) and single.trials == 10
+    assert single.protocol == "single_object" and single.objects == tuple(HOUSEHOLD) and single.trials == 15
     assert single.camera == reference.camera and single.selector == reference.selector
     multi = load_task(TASKS / "multi_household.toml")
-    assert multi.protocol == "multi_object" and multi.objects_per_scene == 5 and multi.trials == 10
+    assert multi.protocol == "multi_object" and multi.objects_per_scene == 5 and multi.trials == 30
     assert set(multi.objects) == set(HOUSEHOLD) | set(PRIMITIVES)
     assert tomllib.loads((TASKS / "multi_household.toml").read_text())["camera"] == \
         tomllib.loads((TASKS / "multi_object.toml").read_text())["camera"]
