@@ -16,7 +16,7 @@ import tomllib
 from kgn_bench.shapes import OBJECTS, PRIMITIVES
 
 __all__ = ["PROTOCOLS", "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig",
-           "apply_override", "load_task"]
+           "apply_override", "load_task", "read_toml"]
 
 PROTOCOLS = ("single_object", "multi_object")
 SCORES = ("confidence_minus_error", "paper_literal")
@@ -139,15 +139,26 @@ def _section(where: str, cls, table: dict[str, Any]):
     return cls(**kwargs)
 
 
+def read_toml(path: Path, what: str, error: type[Exception] = ConfigError) -> dict[str, Any]:
+    """The parsed TOML file ``path`` (a ``what``, named in messages); ``error`` with one line naming the file when
+    it is missing, unreadable or not valid TOML."""
+    path = Path(path)
+    try:
+        return tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what}") from None
+    except OSError as e:
+        raise error(f"{path}: cannot read the {what} ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise error(f"{path}: the {what} is not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as e:
+        raise error(f"{path}: not valid TOML ({e})") from None
+
+
 def load_task(path: str | Path) -> TaskConfig:
     """Read and validate a task file."""
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such task file") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML ({e})") from None
+    raw = read_toml(path, "task file")
     sections = {"task", "objects", "camera", "selector", "execution"}
     for name, value in raw.items():
         if name not in sections:

@@ -26,27 +26,6 @@ TASKS = Path(__file__).resolve().parents[1] / "tasks"
 NAMES = list(HOUSEHOLD)
 
 
-def _inside_geoms(shape, points):
-    """(P,) bool: object-frame points inside any collision geom (box, cylinder, sphere, convex mesh)."""
-    inside = np.zeros(len(points), bool)
-    for g in shape.collision_geoms():
-        R = matrix_from_quat_wxyz(np.asarray(g.quat))
-        local = (points - np.asarray(g.pos)) @ R
-        if g.kind == "box":
-            inside |= np.all(np.abs(local) <= np.asarray(g.size), axis=1)
-        elif g.kind == "cylinder":
-            inside |= (np.hypot(local[:, 0], local[:, 1]) <= g.size[0]) & (np.abs(local[:, 2]) <= g.size[1])
-        elif g.kind == "sphere":
-            inside |= np.linalg.norm(local, axis=1) <= g.size[0]
-        elif g.kind == "mesh":
-            hull = g.mesh.convex_hull
-            offsets = np.einsum("fj,fj->f", hull.face_normals, hull.triangles[:, 0])
-            inside |= np.all(local @ hull.face_normals.T <= offsets + 1e-9, axis=1)
-        else:
-            raise AssertionError(f"unexpected geom kind {g.kind}")
-    return inside
-
-
 def _geom_bounds(shape):
     """Axis-aligned bounds (2, 3) of the collision geoms, from their corners/extremes."""
     pts = []
@@ -142,7 +121,7 @@ def test_mesh_matches_collision_geometry_and_dims(name):
             assert extents[axis] == pytest.approx(expected, abs=2e-3), (name, axis)
     # volume(): the union of the pieces, by Monte Carlo over the geoms (overlaps counted once)
     points = rng.uniform(bounds[0], bounds[1], size=(60000, 3))
-    mc = _inside_geoms(shape, points).mean() * np.prod(bounds[1] - bounds[0])
+    mc = shape.contains(points).mean() * np.prod(bounds[1] - bounds[0])
     assert shape.volume() == pytest.approx(mc, rel=0.08)
 
 
@@ -177,12 +156,12 @@ def test_mug_and_footed_bowl_are_hollow():
     hh = mug.h / 2
     x0, ax, _ = mug._ellipse()
     cavity = np.array([[0, 0, 0], [0, 0, hh - 0.01], [0, 0, -hh + mug.BOTTOM + 0.003], [0.03, 0, 0], [0, -0.03, 0.02]])
-    assert not np.any(_inside_geoms(mug, cavity))
+    assert not np.any(mug.contains(cavity))
     gap = np.array([[mug.r_out + mug.HANDLE_GAP / 2, 0, 0], [mug.r_out + 0.01, 0, 0.01]])
-    assert not np.any(_inside_geoms(mug, gap))
+    assert not np.any(mug.contains(gap))
     solid = np.array([[0.5 * (mug.r_in + mug.r_out), 0, 0], [0, -0.5 * (mug.r_in + mug.r_out), 0.03],
                       [0, 0, -hh + 0.003], [x0 + ax, 0, 0]])
-    assert np.all(_inside_geoms(mug, solid))
+    assert np.all(mug.contains(solid))
     # rim grasps stay clear of the handle
     rim = mug.grasps(EVAL_DENSITY).poses
     rim = rim[np.isclose(rim[:, 2, 0], -1.0)]
@@ -191,9 +170,9 @@ def test_mug_and_footed_bowl_are_hollow():
     bowl = FootedBowl(r=0.06)
     ri, ro, bottom, top = bowl.foot()
     hollow = np.array([[0, 0, -bowl.r / 2], [0, 0, -0.01], [0, 0, bottom + 0.004], [0.5 * ri, 0, bottom + 0.004]])
-    assert not np.any(_inside_geoms(bowl, hollow))
+    assert not np.any(bowl.contains(hollow))
     walls = np.array([[0.5 * (ri + ro), 0, bottom + 0.004], [0, 0, -bowl.r + 0.003]])
-    assert np.all(_inside_geoms(bowl, walls))
+    assert np.all(bowl.contains(walls))
     assert bottom < top < -np.sqrt(bowl.bowl.r_in**2 - ri**2)  # the foot neither floats nor pokes into the bowl
 
 

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from kgn_bench.geometry import matrix_from_quat_wxyz
 from kgn_bench.shapes import EVAL_DENSITY, PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_from_dims
 from kgn_bench.shapes.primitives import WALL_RATIO, Cuboid, Cylinder, Ring, SemiSphere, Sphere, Stick
 
@@ -15,21 +14,6 @@ EXPECTED_COUNTS = {  # reference facts §2.4 (train 5/11, test 10/30)
     "sphere": (22, 60),
     "semi_sphere": (11, 30),
 }
-
-
-def _inside_geoms(shape, points):
-    """(P,) bool: point (object frame) inside any collision box/cylinder/sphere of the shape."""
-    inside = np.zeros(len(points), bool)
-    for g in shape.collision_geoms():
-        R = matrix_from_quat_wxyz(g.quat)
-        local = (points - np.asarray(g.pos)) @ R
-        if g.kind == "box":
-            inside |= np.all(np.abs(local) <= np.asarray(g.size), axis=1)
-        elif g.kind == "cylinder":
-            inside |= (np.hypot(local[:, 0], local[:, 1]) <= g.size[0]) & (np.abs(local[:, 2]) <= g.size[1])
-        elif g.kind == "sphere":
-            inside |= np.linalg.norm(local, axis=1) <= g.size[0]
-    return inside
 
 
 @pytest.mark.parametrize("name", list(PRIMITIVES))
@@ -97,7 +81,7 @@ def test_rim_grasps_sit_inside_the_wall_and_close_radially(cls, rng):
     radial = t[:, :2] / radius[:, None]
     closing = rim[:, :2, 2]
     np.testing.assert_allclose(np.abs(np.sum(radial * closing, axis=1)), 1.0, atol=1e-12)
-    assert np.all(_inside_geoms(s, t))
+    assert np.all(s.contains(t))
     np.testing.assert_allclose(g.widths[: len(rim)], 5 * (WALL_RATIO - 1) * s.r_in)
 
 
@@ -134,7 +118,7 @@ def test_bowl_grasps_at_the_rim_inside_the_wall():
     np.testing.assert_allclose(g.poses[:, 2, 0], -1.0)  # from the top
     radial = t[:, :2] / np.linalg.norm(t[:, :2], axis=1, keepdims=True)
     np.testing.assert_allclose(np.abs(np.sum(radial * g.poses[:, :2, 2], axis=1)), 1.0, atol=1e-12)
-    assert np.all(_inside_geoms(s, t))
+    assert np.all(s.contains(t))
     np.testing.assert_allclose(g.widths, 5 * (s.r - s.r / 1.15))
 
 
@@ -143,12 +127,31 @@ def test_hollow_shapes_are_hollow_and_walls_are_solid():
     r_mid = 0.5 * (tube.r_in + tube.r_out)
     ang = np.linspace(0, 2 * np.pi, 50, endpoint=False)
     wall = np.stack([r_mid * np.cos(ang), r_mid * np.sin(ang), np.zeros_like(ang)], 1)
-    assert np.all(_inside_geoms(tube, wall))
-    assert not np.any(_inside_geoms(tube, np.array([[0, 0, 0], [0.9 * tube.r_in, 0, 0.03]])))
+    assert np.all(tube.contains(wall))
+    assert not np.any(tube.contains(np.array([[0, 0, 0], [0.9 * tube.r_in, 0, 0.03]])))
     bowl = SemiSphere(0.07)
     rm = 0.5 * (bowl.r + bowl.r_in)
     alpha = np.linspace(0.05, np.pi / 2 - 0.05, 20)
     shell = np.stack([rm * np.sin(alpha) * np.cos(3 * alpha), rm * np.sin(alpha) * np.sin(3 * alpha),
                       -rm * np.cos(alpha)], 1)
-    assert np.all(_inside_geoms(bowl, shell))
-    assert not np.any(_inside_geoms(bowl, np.array([[0, 0, -0.5 * bowl.r_in], [0.02, 0, -0.03]])))
+    assert np.all(bowl.contains(shell))
+    assert not np.any(bowl.contains(np.array([[0, 0, -0.5 * bowl.r_in], [0.02, 0, -0.03]])))
+
+
+def test_geom_containment_for_every_kind():
+    import trimesh
+
+    from kgn_bench.shapes import GeomSpec
+
+    q = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)  # 90° about x: the geom's z axis is the object's −y
+    capsule = GeomSpec("capsule", (0.01, 0.03), pos=(0.1, 0.0, 0.0), quat=q)
+    pts = np.array([[0.1, 0.039, 0.0], [0.1, -0.039, 0.0], [0.1, 0.041, 0.0], [0.1, 0.0, 0.0099], [0.1, 0, 0.011]])
+    np.testing.assert_array_equal(capsule.contains(pts), [True, True, False, True, False])
+    box = GeomSpec("box", (0.01, 0.02, 0.03))
+    np.testing.assert_array_equal(box.contains(np.array([[0.0, 0.0195, 0.0], [0.0, 0.0, 0.031]])), [True, False])
+    tetra = trimesh.Trimesh(vertices=[[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], faces=[[0, 2, 1], [0, 1, 3],
+                                                                                          [0, 3, 2], [1, 2, 3]])
+    mesh = GeomSpec("mesh", mesh=tetra)
+    np.testing.assert_array_equal(mesh.contains(np.array([[0.1, 0.1, 0.1], [0.5, 0.5, 0.5]])), [True, False])
+    with pytest.raises(ValueError, match="plane"):
+        GeomSpec("plane").contains(np.zeros((1, 3)))

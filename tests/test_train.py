@@ -67,7 +67,7 @@ def test_tiny_run_trains_checkpoints_and_resumes(tmp_path, tiny_dataset):
     ("[train]\nspeed = 3\n", "unknown key"),
     ("[optimiser]\n", "unknown section"),
     ("[augment]\ninput_size = [100, 64]\n", "multiples of 32"),
-    ("[train\n", "invalid TOML"),
+    ("[train\n", "not valid TOML"),
 ])
 def test_bad_configs_give_one_line(tmp_path, text, message):
     p = tmp_path / "bad.toml"

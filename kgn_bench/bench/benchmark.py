@@ -15,9 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import tomllib
-
-from kgn_bench.config import ConfigError, TaskConfig, load_task
+from kgn_bench.config import ConfigError, TaskConfig, load_task, read_toml
 
 from .runner import run_benchmark
 
@@ -37,12 +35,7 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
     from kgn_bench.detectors import detector_factory
 
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such plan file") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML ({e})") from None
+    raw = read_toml(path, "plan file")
     section = raw.get("benchmark")
     if not isinstance(section, dict) or set(raw) != {"benchmark"}:
         raise ConfigError(f"{path}: a plan has exactly one [benchmark] table")

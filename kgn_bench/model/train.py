@@ -26,10 +26,10 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-import tomllib
 import torch
 from torch.utils.data import DataLoader
 
+from kgn_bench.config import read_toml
 from kgn_bench.data.format import DatasetError
 from kgn_bench.data.training import AugmentConfig, GraspViewDataset
 from kgn_bench.model.checkpoint import (
@@ -102,12 +102,7 @@ def _section(where: str, cls, raw: Any):
 def load_train_config(path: Path) -> TrainConfig:
     """Parse and validate a training TOML file; ``TrainConfigError`` (one line) on any problem."""
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except OSError as e:
-        raise TrainConfigError(f"cannot read {path}: {e.strerror}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise TrainConfigError(f"{path}: invalid TOML ({e})") from None
+    raw = read_toml(path, "training config", TrainConfigError)
     sections = {"train": TrainSettings, "network": NetworkConfig, "input": InputConfig, "augment": AugmentConfig,
                 "loss": LossWeights}
     unknown = sorted(set(raw) - set(sections))

@@ -14,6 +14,7 @@ from typing import ClassVar
 import numpy as np
 import trimesh
 
+from kgn_bench.geometry import matrix_from_quat_wxyz
 from kgn_bench.grasp import GraspSet
 
 __all__ = ["EVAL_DENSITY", "TRAIN_DENSITY", "GeomSpec", "GraspDensity", "RestPose", "Shape"]
@@ -66,6 +67,28 @@ class GeomSpec:
         if self.kind == "mesh" and self.mesh is not None:
             return float(abs(self.mesh.volume))
         raise ValueError(f"no volume for geom kind {self.kind!r}")
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """(P,) bool: which object-frame ``points`` (P, 3) lie inside this geom (boundary included). A mesh geom
+        counts as its convex hull, as MuJoCo collides it; a capsule is a cylinder of half-length ``size[1]``
+        along z with hemispherical caps of radius ``size[0]``."""
+        R = matrix_from_quat_wxyz(np.asarray(self.quat, dtype=float))
+        local = (np.asarray(points, dtype=float) - np.asarray(self.pos)) @ R
+        s = self.size
+        if self.kind == "box":
+            return np.all(np.abs(local) <= np.asarray(s), axis=1)
+        if self.kind == "cylinder":
+            return (np.hypot(local[:, 0], local[:, 1]) <= s[0]) & (np.abs(local[:, 2]) <= s[1])
+        if self.kind == "sphere":
+            return np.linalg.norm(local, axis=1) <= s[0]
+        if self.kind == "capsule":
+            axial = np.clip(local[:, 2], -s[1], s[1])
+            return np.linalg.norm(local - np.c_[np.zeros((len(local), 2)), axial], axis=1) <= s[0]
+        if self.kind == "mesh" and self.mesh is not None:
+            hull = self.mesh.convex_hull
+            offsets = np.einsum("fj,fj->f", hull.face_normals, hull.triangles[:, 0])
+            return np.all(local @ hull.face_normals.T <= offsets + 1e-9, axis=1)
+        raise ValueError(f"cannot test containment for geom kind {self.kind!r}")
 
 
 @dataclass(frozen=True)
@@ -139,6 +162,14 @@ class Shape(abc.ABC):
         """Physical mass in kg: density × volume, clipped to ``MASS_RANGE``."""
         lo, hi = self.MASS_RANGE
         return float(np.clip(self.density * self.volume(), lo, hi))
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """(P,) bool: which object-frame ``points`` (P, 3) lie inside any collision geom."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        inside = np.zeros(len(points), dtype=bool)
+        for g in self.collision_geoms():
+            inside |= g.contains(points)
+        return inside
 
     def lowest_point(self, R: np.ndarray) -> float:
         """Lowest world z of the object's mesh when its frame is rotated by ``R`` and sits at the origin."""
