@@ -641,6 +641,14 @@ def _draw_x_axis(img: np.ndarray, f: _Frame, values: np.ndarray, labels: Sequenc
         _put_text(img, text, x, f.bottom + st.tick_len + st.pad // 2, st.tick, st.text, ha="center", va="top")
 
 
+def _draw_axis_labels(canvas: np.ndarray, xlabel: str, ylabel: str, frame, st) -> None:
+    """The rotated y-axis label left of ``frame`` and the x-axis label centred under it."""
+    _draw_ylabel(canvas, ylabel, frame, st)
+    if xlabel:
+        _put_text(canvas, xlabel, (frame.left + frame.right) / 2, canvas.shape[0] - 1 - st.pad // 2, st.label,
+                  st.text, ha="center", va="bottom")
+
+
 def _draw_ylabel(img: np.ndarray, ylabel: str, f: _Frame, st: _Style) -> None:
     if not ylabel:
         return
@@ -767,10 +775,7 @@ def line_panel(series: Sequence[Series], *, title: str, xlabel: str, ylabel: str
                         cv2.circle(canvas, _fixed(q), st.marker * 16, s.color, -1, cv2.LINE_AA, shift=4)
     _draw_frame(canvas, frame)
 
-    _draw_ylabel(canvas, ylabel, frame, st)
-    if xlabel:
-        _put_text(canvas, xlabel, (frame.left + frame.right) / 2, height - 1 - st.pad // 2, st.label, st.text,
-                  ha="center", va="bottom")
+    _draw_axis_labels(canvas, xlabel, ylabel, frame, st)
     if entries:
         if legend_loc == "outside":
             _draw_outside_legend(canvas, entries, frame.left, frame.right, legend_top, st)
@@ -938,10 +943,7 @@ def bar_chart(groups: Sequence[str], series_labels: Sequence[str], bars: Sequenc
         if g:
             xs = round(left + g * group_w)
             cv2.line(canvas, (xs, frame.bottom), (xs, frame.bottom + st.tick_len), _FRAME, 1)
-    _draw_ylabel(canvas, ylabel, frame, st)
-    if xlabel:
-        _put_text(canvas, xlabel, (frame.left + frame.right) / 2, height - 1 - st.pad // 2, st.label, st.text,
-                  ha="center", va="bottom")
+    _draw_axis_labels(canvas, xlabel, ylabel, frame, st)
     if entries:
         if legend_loc == "outside":
             _draw_outside_legend(canvas, entries, frame.left, frame.right, legend_top, st)
