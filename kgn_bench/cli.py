@@ -369,8 +369,8 @@ def build_parser() -> argparse.ArgumentParser:
     prun.add_argument("--workers", type=_int_at_least(1), default=2)
     prun.set_defaults(func=_cmd_perf_run)
 
-    pdet = psub.add_parser("detector", help="learned detector frames/s at 640×480 and the split")
-    pdet.add_argument("--variant", default="kgnv2")
+    pdet = psub.add_parser("detector", help="detector frames/s at 640×480 (learned ones: and the split)")
+    pdet.add_argument("--variant", default="kgnv2", help="a learned variant or another detector, e.g. antipodal")
     pdet.add_argument("--weights", help="weights file or name under assets/weights (default: the shipped one)")
     pdet.add_argument("--frames", type=_int_at_least(1), default=20)
     pdet.add_argument("--threads", type=_int_at_least(1), default=2, help="torch threads (default 2)")

@@ -5,11 +5,12 @@ from __future__ import annotations
 import os
 import platform
 import tempfile
+import time
 from pathlib import Path
 
 from kgn_bench.data.generate import TIMING_KEYS, GenerateConfig, generate_dataset
 
-__all__ = ["perf_data", "perf_run"]
+__all__ = ["perf_data", "perf_detector", "perf_run"]
 
 
 def perf_data(scenes: int = 20, workers: int = 2, mode: str = "multi", views: int = 5, seed: int = 0) -> str:
@@ -67,9 +68,9 @@ def perf_run(task_path: str | Path, detector: str = "oracle", trials: int = 2, w
 
 def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, frames: int = 20,
                   threads: int = 2, data: Path | None = None) -> str:
-    """Detector frames per second at 640×480: preprocessing, network, decode (peaks, filters, translation)
-    and PnP, each timed separately (medians over ``frames`` frames after one warm-up), on ``threads`` torch
-    threads.
+    """Detector frames per second at 640×480 on ``threads`` torch threads (medians over ``frames`` frames after
+    one warm-up). ``variant`` is a learned variant (then preprocessing, network, decode (peaks, filters,
+    translation) and PnP are timed separately) or any other non-privileged detector name (timed as a whole).
 
     Frames come from the test split of ``data`` when given, else from freshly generated multi-object
     scenes (one seeded 4-scene dataset in a temporary folder).
@@ -79,11 +80,14 @@ def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, fra
     import torch
 
     from kgn_bench.data.format import SceneAnnotation, read_split, read_view, scene_dir
+    from kgn_bench.detectors import LEARNED, make_detector
     from kgn_bench.detectors.base import Observation
     from kgn_bench.detectors.kgn import KGNDetector
 
     torch.set_num_threads(threads)
-    det = KGNDetector(variant, weights)
+    det = KGNDetector(variant, weights) if variant in LEARNED else make_detector(variant, weights)
+    if det.privileged:
+        raise ValueError(f"detector {variant!r} is privileged (it needs the simulator): time it with perf run")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(data) if data else Path(tmp) / "ds"
         if data is None:
@@ -101,20 +105,26 @@ def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, fra
                     break
             if len(observations) >= frames + 1:
                 break
-    times: dict[str, list[float]] = {"preprocess": [], "network": [], "decode": [], "pnp": []}
+    learned = isinstance(det, KGNDetector)
+    times: dict[str, list[float]] = {k: [] for k in (("preprocess", "network", "decode", "pnp") if learned
+                                                     else ("detect",))}
     counts = []
     for i, obs in enumerate(observations):
+        det.reset([0, i])
+        t = time.perf_counter()
         cands = det.detect(obs)
+        elapsed = time.perf_counter() - t
         if i == 0:
             continue  # warm-up
         for k in times:
-            times[k].append(det.timing.get(k, 0.0))
+            times[k].append(det.timing.get(k, 0.0) if learned else elapsed)
         counts.append(len(cands))
     ms = {k: 1e3 * float(np.median(v)) for k, v in times.items()}
     total = sum(ms.values())
+    about = (f"({det.model.meta.get('parameters', 'n/a')} parameters), input scale "
+             f"{det.model.input_config.input_scale}, " if learned else "")
     lines = [
-        f"detector {variant} ({det.model.meta.get('parameters', 'n/a')} parameters), {len(counts)} frames at "
-        f"640×480, input scale {det.model.input_config.input_scale}, {threads} torch threads",
+        f"detector {variant} {about}{len(counts)} frames at 640×480, {threads} torch threads",
         "",
         *_stage_table(ms, "frame"),
         "",

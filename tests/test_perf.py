@@ -1,3 +1,5 @@
+import pytest
+
 from kgn_bench.perf import perf_data
 
 
@@ -6,3 +8,13 @@ def test_perf_data_reports_views_per_second_and_the_split():
     assert "views/s" in report
     for stage in ("settle", "annotate", "render", "write"):
         assert f"| {stage} |" in report
+
+
+def test_perf_detector_times_any_non_privileged_detector(tiny_dataset):
+    from kgn_bench.perf import perf_detector
+
+    root, _ = tiny_dataset
+    text = perf_detector("antipodal", frames=1, threads=1, data=root)
+    assert "detector antipodal" in text and "| detect |" in text and "frames/s" in text
+    with pytest.raises(ValueError, match="privileged"):
+        perf_detector("oracle", frames=1, data=root)
