@@ -1,3 +1,5 @@
+"""The perf commands print their figures: dataset generation and detector timing."""
+
 import pytest
 
 from kgn_bench.perf import perf_data
