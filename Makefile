@@ -14,10 +14,10 @@ $(BIN)/kgn-bench: pyproject.toml constraints.txt
 
 setup: $(BIN)/kgn-bench
 
-# The main job: the single-object closed-loop benchmark (60 trials) with the oracle detector.
-# (The learned detectors plug in with --detector once their weights ship.)
+# The main job: the closed-loop benchmark (tasks/benchmark.toml: 4 tasks) with the shipped KGNv2 weights,
+# then the report table (runs/benchmark/benchmark.md). `kgn-bench benchmark --out results` runs every detector.
 benchmark: setup
-	$(BIN)/kgn-bench run tasks/single_object.toml --detector oracle --workers 2 --out runs/single_object_oracle
+	$(BIN)/kgn-bench benchmark tasks/benchmark.toml --detectors kgnv2 --workers 2 --runs runs/benchmark
 
 # A small multi-object PS dataset and a preview of one view.
 demo: setup

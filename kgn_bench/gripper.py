@@ -59,6 +59,12 @@ class GripperGeometry:
     """The arm's last link behind the flange (a capsule of this radius), as the selector sees it."""
     grip_force: float = 40.0
     """Force limit (N) of the closing servo; each finger pushes with half of it."""
+    open_margin: float = 0.01
+    """How much wider than a grasp's width (m) the jaws open before the approach."""
+
+    def opening(self, width: float | np.ndarray) -> float | np.ndarray:
+        """The jaw opening used for a grasp of ``width``: ``min(width + open_margin, max_width)``."""
+        return np.minimum(np.asarray(width) + self.open_margin, self.max_width)
 
     @property
     def tcp_offset(self) -> float:

@@ -17,3 +17,9 @@ def test_proxy_corners_follow_pose():
     np.testing.assert_allclose(corners[:, 1].min(), -0.10)
     np.testing.assert_allclose(corners[:, 1].max(), 0.0, atol=1e-12)
     np.testing.assert_allclose(np.ptp(corners[:, 0]), 0.02, atol=1e-12)
+
+
+def test_opening_adds_the_margin_up_to_the_maximum():
+    np.testing.assert_allclose(GRIPPER.opening(0.05), 0.05 + GRIPPER.open_margin)
+    np.testing.assert_allclose(GRIPPER.opening(GRIPPER.max_width), GRIPPER.max_width)
+    np.testing.assert_allclose(GRIPPER.opening(np.array([0.0, 0.195])), [GRIPPER.open_margin, GRIPPER.max_width])

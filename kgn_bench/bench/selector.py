@@ -200,7 +200,7 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
         if not (0.0 < w <= GRIPPER.max_width):
             sel.rejected["width"] += 1
             continue
-        open_w = min(w + 0.01, GRIPPER.max_width)
+        open_w = float(GRIPPER.opening(w))
         boxes = [_swept(b, back) for b in GRIPPER.boxes(open_w)]
         R = poses[k][:3, :3]
         near = points[np.linalg.norm(points - poses[k][:3, 3], axis=1) < reach]

@@ -52,8 +52,6 @@ __all__ = ["AntipodalDetector", "estimate_normals"]
 _PREGRASP_BACKOFF = ExecutionConfig().pregrasp_distance
 """How far the harness backs off along −approach for the pre-grasp (the default task setting); the clearance
 check sweeps the boxes over it."""
-_OPEN_EXTRA = 0.01
-"""The selector opens the jaws this much wider than the candidate's width (``bench/selector.py``)."""
 _BIN = 0.003
 _GAP = GRIPPER.finger_thickness + 0.005
 """A gap along the closing axis at least this wide ends an object part: a finger fits into it."""
@@ -293,13 +291,13 @@ class AntipodalDetector:
         c_lo, c_hi = _extent(c, col, g.max_width)
         a_min = np.where(col & (c >= c_lo[:, None]) & (c <= c_hi[:, None]), a, np.inf).min(1)
         w1 = c_hi - c_lo + 2 * self.margin
-        keep = np.isfinite(a_min) & (w1 <= g.max_width - _OPEN_EXTRA)
+        keep = np.isfinite(a_min) & (w1 <= g.max_width - g.open_margin)
         R, seed_of, a, b, c, same, slab, c_lo, c_hi, a_min, w1 = _rows(
             keep, R, seed_of, a, b, c, same, slab, c_lo, c_hi, a_min, w1)
 
         # 2. fingertip depth: `depth` past the first surface, less where the fingers would reach the table
         xz, yz, zz = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
-        w_open1 = np.minimum(w1 + _OPEN_EXTRA, g.max_width)
+        w_open1 = g.opening(w1)
         low_rel = np.minimum(-fl * xz, 0.0) - np.abs(yz) * half_b - np.abs(zz) * (w_open1 / 2 + g.finger_thickness)
         pz = p[seed_of, 2]
         limit = (self.table_clearance - low_rel - pz - zz * 0.5 * (c_hi + c_lo)) / np.where(xz < -1e-6, xz, -1.0)
@@ -313,7 +311,7 @@ class AntipodalDetector:
         c_lo = np.where(reg, c, np.inf).min(1)
         width = np.maximum(c_hi - c_lo + 2 * self.margin, self.min_width)
         c_mid = 0.5 * (c_hi + c_lo)
-        w_open = np.minimum(width + _OPEN_EXTRA, g.max_width)
+        w_open = g.opening(width)
         keep = (a_tip >= a_min + self.min_depth) & (n_enc >= self.min_enclosed)
         keep &= _lowest_box_z(pz + xz * a_tip + zz * c_mid, R, w_open) >= self.table_clearance - 1e-6
         R, seed_of, a, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, w_open, n_enc = _rows(
