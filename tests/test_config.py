@@ -19,7 +19,7 @@ def test_single_object_task():
     assert t.n_trials == 120  # trials per object × objects
     assert t.camera.distance == 0.8 and t.camera.elevation_deg == 60.0 and t.camera.azimuth_deg == 90.0
     assert isinstance(t.camera.distance, float)
-    assert t.selector.score == "confidence_minus_error" and t.selector.reprojection_weight == 0.02
+    assert t.selector.score == "confidence_minus_error" and t.selector.reprojection_weight == 0.0
     assert t.execution.max_consecutive_failures == 3
 
 

@@ -23,7 +23,7 @@ from kgn_bench.sim.robot import READY_Q
 HEIGHT = 0.05
 FAR = np.array([0.45, 0.0])  # the second box: 1 m from the arm base
 EXEC = ExecutionConfig()
-CFG = SelectorConfig(approach_search=0.0, closing_search=0.0)  # the checks at each candidate's own pose
+CFG = SelectorConfig(approach_search=0.0, closing_search=0.0, reprojection_weight=0.02)  # checks at own pose
 SEARCH = SelectorConfig()  # the default: shifted poses are tried too
 # top-down grasp frame: approach x = world −z, closing z = world +y, y = z × x = world −x
 DOWN = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
