@@ -48,7 +48,9 @@ class SelectorConfig:
     printed formula, kept as an ablation). A candidate closer than
     ``retry_distance`` (m) and ``retry_angle_deg`` (up to the 180° symmetry) to a grasp that already failed
     in the same trial is not tried again. ``shadow_margin`` (m): how far behind the observed surface a palm
-    or wrist point must lie to count as hidden (the selector's occlusion check)."""
+    or wrist point must lie to count as hidden (the selector's occlusion check). ``centre_range`` (m, 0 = off):
+    how far the chosen grasp may move along its closing axis to centre the observed points between the jaws
+    (default 0.02: kgnv2 single-object success 84.2 % without, 91.7 % with; README "Selector study")."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
@@ -63,6 +65,7 @@ class SelectorConfig:
     approach_search: float = 0.03
     closing_search: float = 0.01
     search_step: float = 0.005
+    centre_range: float = 0.02
 
 
 @dataclass(frozen=True)
@@ -214,6 +217,8 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
     sel = cfg.selector
     if min(sel.approach_search, sel.closing_search) < 0 or sel.search_step < 0:
         raise ConfigError(f"{where}: selector.approach_search, closing_search and search_step must be ≥ 0")
+    if sel.centre_range < 0:
+        raise ConfigError(f"{where}: selector.centre_range must be ≥ 0, got {sel.centre_range}")
     if (sel.approach_search > 0 or sel.closing_search > 0) and not 0.0005 <= sel.search_step <= 0.05:
         raise ConfigError(f"{where}: selector.search_step must be in [0.0005, 0.05] m, got {sel.search_step}")
     if cfg.selector.point_stride < 1:

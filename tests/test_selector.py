@@ -9,6 +9,7 @@ import pytest
 from kgn_bench.bench.selector import (
     REJECTIONS,
     DepthView,
+    centre_offset,
     near_failed,
     score_candidates,
     search_offsets,
@@ -23,7 +24,7 @@ from kgn_bench.sim.robot import READY_Q
 HEIGHT = 0.05
 FAR = np.array([0.45, 0.0])  # the second box: 1 m from the arm base
 EXEC = ExecutionConfig()
-CFG = SelectorConfig(approach_search=0.0, closing_search=0.0, reprojection_weight=0.02)  # checks at own pose
+CFG = SelectorConfig(approach_search=0.0, closing_search=0.0, centre_range=0.0, reprojection_weight=0.02)  # own pose
 SEARCH = SelectorConfig()  # the default: shifted poses are tried too
 # top-down grasp frame: approach x = world −z, closing z = world +y, y = z × x = world −x
 DOWN = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
@@ -254,3 +255,27 @@ def test_a_grasp_too_deep_or_off_centre_is_shifted_to_a_feasible_pose(points, ik
     empty = _pose((0.25, 0.2, 0.02))
     sel = _select([empty], [0.06], points, ik, cfg=SEARCH)
     assert sel.index is None and sel.rejected["enclosure"] == 1 and sum(sel.rejected.values()) == 1
+
+
+def test_centre_offset_centres_the_points_between_the_jaws():
+    # points of a 4 cm object spanning z ∈ [0.005, 0.045] in the grasp frame, 3 cm below the fingertips
+    z = np.linspace(0.005, 0.045, 9)
+    local = np.c_[np.full(9, -0.03), np.zeros(9), z]
+    side, along = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])  # closing axis ⟂ / ∥ to the ray
+    assert centre_offset(local, 0.10, side, along, 0.03, 5) == pytest.approx(0.025)
+    assert centre_offset(local, 0.10, side, along, 0.01, 5) == pytest.approx(0.01)  # clipped
+    assert centre_offset(local, 0.10, along, along, 0.03, 5) == 0.0  # only the near face is seen
+    assert centre_offset(local, 0.10, side, along, 0.03, 10) == 0.0  # too few points
+    assert centre_offset(local, 0.06, side, along, 0.03, 5) == pytest.approx((0.005 + 0.025) / 2)  # inside jaws only
+
+
+def test_an_off_centre_grasp_is_centred_on_the_box(points, ik):
+    # 1.2 cm off-centre across a 4 cm box with a wide opening: feasible as it is, but one finger would hit first
+    side = _pose((0.0, 0.012, 0.02))
+    seen = DepthView(np.full((480, 640), 1.0, np.float32), K, DOWN_CAM)
+    args = (np.stack([side]), np.array([0.08]), np.ones(1), np.full(1, np.nan), points, ik)
+    plain = select_grasp(*args, CFG, EXEC, None, seen)
+    assert plain.grasp[1, 3] == pytest.approx(0.012)
+    centred = select_grasp(*args, replace(CFG, centre_range=0.02), EXEC, None, seen)
+    assert abs(centred.grasp[1, 3]) < 0.002
+    assert select_grasp(*args, replace(CFG, centre_range=0.005), EXEC, None, seen).grasp[1, 3] == pytest.approx(0.007)

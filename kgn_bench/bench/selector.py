@@ -26,6 +26,13 @@ approach (±``approach_search``) and the closing axis (±``closing_search``) in 
 shift first: a detector whose pose is right but whose distance to the camera is a centimetre or two off (a
 scale error) still yields the grasp it meant. The shifted pose is the one executed.
 
+Centring (``centre_range`` > 0, needs the depth image): the pose that passed is moved along its closing axis z
+by ``dz = (z_min + z_max) / 2``, clipped to ±``centre_range``, where [z_min, z_max] is the extent along z of the
+observed points in the closing region at the full jaw opening; it is kept if it passes the checks again. Only
+when the closing axis is within ``CENTRE_VIEW_DEG`` of perpendicular to the camera ray through the grasp
+origin: then both ends of the object along z face the camera, and the seen extent is the object's. (A closing
+axis along the ray sees only the near face, whose extent says nothing about the far one.)
+
 The observed points come from the depth image (world frame), never from the simulator. Poses are world
 frame ``T_world_grasp``. Each candidate is tried in both of its 180°-symmetric forms (the one closer to the
 arm's ready wrist first). The executed grasp is pushed ``grasp_depth`` further along its approach when the
@@ -44,9 +51,12 @@ from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q
 
-__all__ = ["REJECTIONS", "DepthView", "Selection", "near_failed", "score_candidates", "search_offsets", "select_grasp"]
+__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "DepthView", "Selection", "centre_offset", "near_failed",
+           "score_candidates", "search_offsets", "select_grasp"]
 
 REJECTIONS = ("repeat", "width", "collision", "occluded", "enclosure", "ik")
+CENTRE_VIEW_DEG = 45.0
+"""Centring applies when the closing axis is at most this far from perpendicular to the camera ray."""
 
 
 @dataclass(frozen=True)
@@ -174,6 +184,24 @@ def _check(pose: np.ndarray, open_w: float, width: float, local: np.ndarray, box
     return None
 
 
+def centre_offset(local: np.ndarray, open_w: float, closing_world: np.ndarray, ray_world: np.ndarray,
+                  limit: float, min_points: int) -> float:
+    """The shift (m) along the closing axis that centres the observed points between the open jaws.
+
+    ``local``: observed points in the grasp frame; the ones inside ``GRIPPER.closing_region(open_w)`` span
+    [z_min, z_max]; the shift is ``(z_min + z_max) / 2`` clipped to ±``limit``. Zero when fewer than
+    ``min_points`` points are there, or when the closing axis (world, unit) is more than ``CENTRE_VIEW_DEG``
+    from perpendicular to ``ray_world`` (camera → grasp origin, unit).
+    """
+    if abs(float(closing_world @ ray_world)) > np.sin(np.deg2rad(CENTRE_VIEW_DEG)):
+        return 0.0
+    region = GRIPPER.closing_region(open_w)
+    z = local[np.all(np.abs(local - region.centre) < region.half, axis=1), 2]
+    if len(z) < min_points:
+        return 0.0
+    return float(np.clip((z.min() + z.max()) / 2.0, -limit, limit))
+
+
 def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
                  points: np.ndarray, ik: IK, cfg: SelectorConfig, execution: ExecutionConfig,
                  failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
@@ -220,6 +248,17 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
         if pose is None:
             sel.rejected[first_failure] += 1
             continue
+        if cfg.centre_range > 0 and view is not None:
+            local = (near - pose[:3, 3]) @ R
+            ray = pose[:3, 3] - view.camera_pose[:3, 3]
+            dz = centre_offset(local, open_w, R[:, 2], ray / np.linalg.norm(ray), cfg.centre_range,
+                               cfg.enclosed_points)
+            if dz != 0.0:
+                centred = pose.copy()
+                centred[:3, 3] += dz * R[:, 2]
+                if _check(centred, open_w, w, local - np.array([0.0, 0.0, dz]), boxes, palm_samples, view,
+                          cfg) is None:
+                    pose = centred
         flipped = flip_180(pose[None])[0]
         forms = (pose, flipped) if pose[:3, 2] @ ready_closing >= 0 else (flipped, pose)
         for form in forms:
