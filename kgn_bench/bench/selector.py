@@ -131,6 +131,11 @@ def _swept(box: GripperBox, back: float) -> GripperBox:
     return GripperBox(box.name, box.centre - np.array([back / 2.0, 0.0, 0.0]), half)
 
 
+def _union_bounds(boxes: list[GripperBox]) -> tuple[np.ndarray, np.ndarray]:
+    """The lower and upper corners (3,) of the axis-aligned box holding all ``boxes`` (one frame)."""
+    return (np.min([b.centre - b.half for b in boxes], axis=0), np.max([b.centre + b.half for b in boxes], axis=0))
+
+
 def _count_inside(points_g: np.ndarray, box: GripperBox) -> int:
     return int(np.count_nonzero(np.all(np.abs(points_g - box.centre) < box.half, axis=1)))
 
@@ -219,7 +224,9 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
     repeat = near_failed(poses, np.zeros((0, 4, 4)) if failed is None else failed, cfg.retry_distance,
                          np.deg2rad(cfg.retry_angle_deg))
     offsets = search_offsets(cfg)
-    reach = 0.35 + float(np.abs(offsets).max(initial=0.0)) + execution.grasp_depth
+    # every grasp-frame point a check can look at lies in the boxes' union, moved by the largest shifts
+    margin = np.array([float(np.abs(offsets[:, 0]).max(initial=0.0)) + execution.grasp_depth, 0.0,
+                       float(np.abs(offsets[:, 1]).max(initial=0.0)) + cfg.centre_range]) + 1e-6
     for k in order:
         if repeat[k]:
             sel.rejected["repeat"] += 1
@@ -231,8 +238,9 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
         open_w = float(GRIPPER.opening(w))
         boxes = [_swept(b, back) for b in GRIPPER.boxes(open_w)]
         R = poses[k][:3, :3]
-        near = points[np.linalg.norm(points - poses[k][:3, 3], axis=1) < reach]
-        local0 = (near - poses[k][:3, 3]) @ R  # observed points in the candidate's grasp frame
+        local0 = (points - poses[k][:3, 3]) @ R  # observed points in the candidate's grasp frame
+        lo, hi = _union_bounds([*boxes, GRIPPER.closing_region(open_w)])
+        local0 = local0[np.all((local0 > lo - margin) & (local0 < hi + margin), axis=1)]
         first_failure, pose = None, None
         for dx, dz in offsets:
             shifted = poses[k].copy()
@@ -249,7 +257,7 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
             sel.rejected[first_failure] += 1
             continue
         if cfg.centre_range > 0 and view is not None:
-            local = (near - pose[:3, 3]) @ R
+            local = local0 - (pose[:3, 3] - poses[k][:3, 3]) @ R
             ray = pose[:3, 3] - view.camera_pose[:3, 3]
             dz = centre_offset(local, open_w, R[:, 2], ray / np.linalg.norm(ray), cfg.centre_range,
                                cfg.enclosed_points)
