@@ -136,17 +136,28 @@ def _union_bounds(boxes: list[GripperBox]) -> tuple[np.ndarray, np.ndarray]:
     return (np.min([b.centre - b.half for b in boxes], axis=0), np.max([b.centre + b.half for b in boxes], axis=0))
 
 
-def _count_inside(points_g: np.ndarray, box: GripperBox) -> int:
-    return int(np.count_nonzero(np.all(np.abs(points_g - box.centre) < box.half, axis=1)))
+def _count_inside(points_g: np.ndarray, box: GripperBox, shifts: np.ndarray) -> np.ndarray:
+    """(K,) how many grasp-frame points lie inside ``box`` moved by each grasp-frame shift (K, 3)."""
+    lo, hi = box.centre - box.half + shifts.min(axis=0), box.centre + box.half + shifts.max(axis=0)
+    points_g = points_g[np.all((points_g > lo) & (points_g < hi), axis=1)]  # inside for some shift
+    inside = np.abs(points_g[None] - shifts[:, None] - box.centre) < box.half
+    return np.count_nonzero(inside.all(axis=2), axis=1)
 
 
-def _grasp_depth(pose: np.ndarray, width: float, depth: float, clearance: float) -> float:
-    """How far (≤ ``depth``) the grasp can move along its approach with the fingers above the table."""
+def _lowest_z(boxes: list[GripperBox], pose: np.ndarray) -> float:
+    """World z of the lowest corner of ``boxes`` placed at ``pose``."""
+    return float(min(box_corners(b, pose[None])[0, :, 2].min() for b in boxes))
+
+
+def _grasp_depths(pose: np.ndarray, shifts: np.ndarray, width: float, depth: float, clearance: float) -> np.ndarray:
+    """(K,) how far (≤ ``depth``) each shifted grasp (``pose`` moved by grasp-frame ``shifts`` (K, 3)) can
+    move along its approach with the fingers' lowest corner ``clearance`` above the table top (z = 0)."""
     az = pose[2, 0]
     if az >= -1e-6:
-        return depth
-    low = min(box_corners(GRIPPER.finger_box(s, width), pose[None])[0, :, 2].min() for s in (1, -1))
-    return float(np.clip((low - clearance) / -az, 0.0, depth))
+        return np.full(len(shifts), depth)
+    fingers = [GRIPPER.finger_box(s, width) for s in (1, -1)]
+    low = _lowest_z(fingers, pose) + shifts @ pose[2, :3]
+    return np.clip((low - clearance) / -az, 0.0, depth)
 
 
 def near_failed(poses: np.ndarray, failed: np.ndarray, distance: float, angle: float) -> np.ndarray:
@@ -174,19 +185,26 @@ def search_offsets(cfg: SelectorConfig) -> np.ndarray:
     return grid[np.lexsort((grid[:, 1], grid[:, 0], np.hypot(grid[:, 0], grid[:, 1])))]
 
 
-def _check(pose: np.ndarray, open_w: float, width: float, local: np.ndarray, boxes: list[GripperBox],
-           palm_samples: np.ndarray, view: DepthView | None, cfg: SelectorConfig) -> str | None:
-    """The first gripper-prior check (collision, occluded, enclosure) that ``pose`` fails, None if it passes.
-    ``local``: observed points in the grasp frame of ``pose``."""
-    corners = np.concatenate([box_corners(b, pose[None])[0] for b in boxes])
-    hits = sum(_count_inside(local, b) for b in boxes)
-    if corners[:, 2].min() < cfg.table_clearance - 1e-6 or hits >= cfg.collision_points:
-        return "collision"
-    if view is not None and np.any(view.hidden(palm_samples @ pose[:3, :3].T + pose[:3, 3], cfg.shadow_margin)):
-        return "occluded"
-    if _count_inside(local, GRIPPER.closing_region(width)) < cfg.enclosed_points:
-        return "enclosure"
-    return None
+_CHECKS = (None, "collision", "occluded", "enclosure")
+
+
+def _failures(pose: np.ndarray, shifts: np.ndarray, width: float, local: np.ndarray, boxes: list[GripperBox],
+              palm_samples: np.ndarray, view: DepthView | None, cfg: SelectorConfig) -> np.ndarray:
+    """For ``pose`` moved by each grasp-frame shift (K, 3): the first gripper-prior check it fails, as an
+    index into ``_CHECKS`` (0 = passes all). ``local``: observed points in the grasp frame of ``pose``;
+    ``boxes``: the swept gripper boxes; ``width``: the candidate's (closing region) width."""
+    R, t = pose[:3, :3], pose[:3, 3]
+    low = _lowest_z(boxes, pose) + shifts @ R[2] < cfg.table_clearance - 1e-6
+    hits = sum(_count_inside(local, b, shifts) for b in boxes)
+    code = np.where(low | (hits >= cfg.collision_points), 1, 0)
+    todo = np.flatnonzero(code == 0)
+    if view is not None and len(todo):
+        world = (palm_samples[None] + shifts[todo, None]) @ R.T + t
+        hidden = view.hidden(world.reshape(-1, 3), cfg.shadow_margin).reshape(len(todo), -1).any(axis=1)
+        code[todo[hidden]] = 2
+    enclosed = _count_inside(local, GRIPPER.closing_region(width), shifts)
+    code[(code == 0) & (enclosed < cfg.enclosed_points)] = 3
+    return code
 
 
 def centre_offset(local: np.ndarray, open_w: float, closing_world: np.ndarray, ray_world: np.ndarray,
@@ -241,32 +259,26 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
         local0 = (points - poses[k][:3, 3]) @ R  # observed points in the candidate's grasp frame
         lo, hi = _union_bounds([*boxes, GRIPPER.closing_region(open_w)])
         local0 = local0[np.all((local0 > lo - margin) & (local0 < hi + margin), axis=1)]
-        first_failure, pose = None, None
-        for dx, dz in offsets:
-            shifted = poses[k].copy()
-            shifted[:3, 3] += dx * R[:, 0] + dz * R[:, 2]
-            depth = _grasp_depth(shifted, open_w, execution.grasp_depth, cfg.table_clearance)
-            shifted[:3, 3] += depth * R[:, 0]
-            local = local0 - np.array([dx + depth, 0.0, dz])
-            failure = _check(shifted, open_w, w, local, boxes, palm_samples, view, cfg)
-            first_failure = first_failure or failure
-            if failure is None:
-                pose = shifted
-                break
-        if pose is None:
-            sel.rejected[first_failure] += 1
+        shifts = np.c_[offsets[:, 0], np.zeros(len(offsets)), offsets[:, 1]]
+        shifts[:, 0] += _grasp_depths(poses[k], shifts, open_w, execution.grasp_depth, cfg.table_clearance)
+        args = (w, local0, boxes, palm_samples, view, cfg)
+        codes = _failures(poses[k], shifts[:1], *args)  # most candidates pass or fail where they are
+        if codes[0] != 0 and len(shifts) > 1:
+            codes = np.concatenate([codes, _failures(poses[k], shifts[1:], *args)])
+        passing = np.flatnonzero(codes == 0)
+        if len(passing) == 0:
+            sel.rejected[_CHECKS[codes[0]]] += 1
             continue
+        shift = shifts[passing[0]]
         if cfg.centre_range > 0 and view is not None:
-            local = local0 - (pose[:3, 3] - poses[k][:3, 3]) @ R
-            ray = pose[:3, 3] - view.camera_pose[:3, 3]
-            dz = centre_offset(local, open_w, R[:, 2], ray / np.linalg.norm(ray), cfg.centre_range,
+            ray = poses[k][:3, 3] + R @ shift - view.camera_pose[:3, 3]
+            dz = centre_offset(local0 - shift, open_w, R[:, 2], ray / np.linalg.norm(ray), cfg.centre_range,
                                cfg.enclosed_points)
-            if dz != 0.0:
-                centred = pose.copy()
-                centred[:3, 3] += dz * R[:, 2]
-                if _check(centred, open_w, w, local - np.array([0.0, 0.0, dz]), boxes, palm_samples, view,
-                          cfg) is None:
-                    pose = centred
+            centred = shift + np.array([0.0, 0.0, dz])
+            if dz != 0.0 and _failures(poses[k], centred[None], *args)[0] == 0:
+                shift = centred
+        pose = poses[k].copy()
+        pose[:3, 3] += R @ shift
         flipped = flip_180(pose[None])[0]
         forms = (pose, flipped) if pose[:3, 2] @ ready_closing >= 0 else (flipped, pose)
         for form in forms:
