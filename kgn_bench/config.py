@@ -50,7 +50,9 @@ class SelectorConfig:
     in the same trial is not tried again. ``shadow_margin`` (m): how far behind the observed surface a palm
     or wrist point must lie to count as hidden (the selector's occlusion check). ``centre_range`` (m, 0 = off):
     how far the chosen grasp may move along its closing axis to centre the observed points between the jaws
-    (default 0.02: kgnv2 single-object success 84.2 % without, 91.7 % with; README "Selector study")."""
+    (default 0.02: kgnv2 single-object success 84.2 % without, 91.7 % with; README "Selector study").
+    ``level_deg`` (degrees, 0 = off, the default): grasps approaching within this angle of straight down get
+    a horizontal closing axis (``bench.selector.level_poses``)."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
@@ -66,6 +68,7 @@ class SelectorConfig:
     closing_search: float = 0.01
     search_step: float = 0.005
     centre_range: float = 0.02
+    level_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -217,6 +220,8 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
     sel = cfg.selector
     if min(sel.approach_search, sel.closing_search) < 0 or sel.search_step < 0:
         raise ConfigError(f"{where}: selector.approach_search, closing_search and search_step must be ≥ 0")
+    if not 0.0 <= sel.level_deg < 90.0:
+        raise ConfigError(f"{where}: selector.level_deg must be in [0, 90), got {sel.level_deg}")
     if sel.centre_range < 0:
         raise ConfigError(f"{where}: selector.centre_range must be ≥ 0, got {sel.centre_range}")
     if (sel.approach_search > 0 or sel.closing_search > 0) and not 0.0005 <= sel.search_step <= 0.05:

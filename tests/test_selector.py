@@ -10,6 +10,7 @@ from kgn_bench.bench.selector import (
     REJECTIONS,
     DepthView,
     centre_offset,
+    level_poses,
     near_failed,
     score_candidates,
     search_offsets,
@@ -279,3 +280,19 @@ def test_an_off_centre_grasp_is_centred_on_the_box(points, ik):
     centred = select_grasp(*args, replace(CFG, centre_range=0.02), EXEC, None, seen)
     assert abs(centred.grasp[1, 3]) < 0.002
     assert select_grasp(*args, replace(CFG, centre_range=0.005), EXEC, None, seen).grasp[1, 3] == pytest.approx(0.007)
+
+
+def test_level_poses_makes_near_top_down_closing_axes_horizontal():
+    tilt = make_pose(DOWN, (0.0, 0.0, 0.02))
+    # tip the grasp 8° about its own y axis: the closing axis rises, the approach leans
+    b = np.deg2rad(8.0)
+    x, z = DOWN[:, 0], DOWN[:, 2]
+    tilt[:3, 0], tilt[:3, 2] = np.cos(b) * x + np.sin(b) * z, -np.sin(b) * x + np.cos(b) * z
+    side = make_pose(np.stack([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]], axis=1), (0.0, 0.0, 0.02))  # approach +x
+    out = level_poses(np.stack([tilt, side]), 30.0)
+    np.testing.assert_allclose(out[0][:3, :3], DOWN, atol=1e-12)  # back to straight down, closing horizontal
+    np.testing.assert_allclose(out[0][:3, 3], tilt[:3, 3])
+    np.testing.assert_allclose(out[1], side)  # not near top-down: unchanged
+    assert np.allclose(level_poses(tilt[None], 5.0)[0], tilt)  # 8° + leaning approach is outside a 5° cone
+    R = out[0][:3, :3]
+    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)

@@ -26,6 +26,10 @@ approach (±``approach_search``) and the closing axis (±``closing_search``) in 
 shift first: a detector whose pose is right but whose distance to the camera is a centimetre or two off (a
 scale error) still yields the grasp it meant. The shifted pose is the one executed.
 
+Levelling (``level_deg`` > 0, off by default): before everything else, candidates approaching within
+``level_deg`` of straight down are turned about their own y axis until their closing axis is horizontal
+(``level_poses``).
+
 Centring (``centre_range`` > 0, needs the depth image): the pose that passed is moved along its closing axis z
 by ``dz = (z_min + z_max) / 2``, clipped to ±``centre_range``, where [z_min, z_max] is the extent along z of the
 observed points in the closing region at the full jaw opening; it is kept if it passes the checks again. Only
@@ -51,7 +55,7 @@ from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q
 
-__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "DepthView", "Selection", "centre_offset", "near_failed",
+__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "DepthView", "Selection", "centre_offset", "level_poses", "near_failed",
            "score_candidates", "search_offsets", "select_grasp"]
 
 REJECTIONS = ("repeat", "width", "collision", "occluded", "enclosure", "ik")
@@ -225,6 +229,24 @@ def centre_offset(local: np.ndarray, open_w: float, closing_world: np.ndarray, r
     return float(np.clip((z.min() + z.max()) / 2.0, -limit, limit))
 
 
+def level_poses(poses: np.ndarray, max_tilt_deg: float) -> np.ndarray:
+    """World grasps (N, 4, 4) whose approach x points within ``max_tilt_deg`` of straight down, turned about
+    their own y axis (through the grasp origin) until the closing axis z is horizontal; the others as they are.
+
+    With x' = cos β·x − sin β·z and z' = sin β·x + cos β·z (a rotation about y, which stays), z'_z = 0 gives
+    tan β = −z_z / x_z. Objects rest on a horizontal table: a closing axis tilted by a few degrees only lowers
+    one finger's outer corner towards the table, which then stops the grasp short of the depth it meant.
+    """
+    out = np.array(poses, dtype=float, copy=True)
+    x, z = out[:, :3, 0].copy(), out[:, :3, 2].copy()
+    down = x[:, 2] < -np.cos(np.deg2rad(max_tilt_deg))
+    beta = np.arctan(-z[:, 2] / np.where(down, x[:, 2], -1.0))
+    c, s = np.cos(beta)[:, None], np.sin(beta)[:, None]
+    out[down, :3, 0] = (c * x - s * z)[down]
+    out[down, :3, 2] = (s * x + c * z)[down]
+    return out
+
+
 def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
                  points: np.ndarray, ik: IK, cfg: SelectorConfig, execution: ExecutionConfig,
                  failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
@@ -233,6 +255,8 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
     depth image the points came from) enables the occlusion check. A candidate that fails the gripper prior
     where it is is tried shifted by ``search_offsets`` (the first shift that passes is kept); its rejection is
     counted under the check its unshifted pose failed."""
+    if cfg.level_deg > 0:
+        poses = level_poses(poses, cfg.level_deg)
     scores = score_candidates(confidences, errors, cfg)
     sel = Selection(index=None, scores=scores)
     order = np.argsort(-scores, kind="stable")[: cfg.max_candidates]
