@@ -26,7 +26,7 @@ approach (±``approach_search``) and the closing axis (±``closing_search``) in 
 shift first: a detector whose pose is right but whose distance to the camera is a centimetre or two off (a
 scale error) still yields the grasp it meant. The shifted pose is the one executed.
 
-Levelling (``level_deg`` > 0, off by default): before everything else, candidates approaching within
+Levelling (``level_deg`` > 0): before everything else, candidates approaching within
 ``level_deg`` of straight down are turned about their own y axis until their closing axis is horizontal
 (``level_poses``).
 
