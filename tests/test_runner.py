@@ -80,9 +80,12 @@ def test_run_writes_trials_and_summaries(task, first_run):
 def test_rerun_resumes_without_duplicating(first_run, task, tmp_path):
     out = _copy(first_run[0], tmp_path)
     before = (out / "trials.jsonl").read_text()
+    timing = (out / "timing.json").read_text()
     result = run_benchmark(task, "oracle", out, workers=1, progress=False)
     assert result.ran == 0
     assert (out / "trials.jsonl").read_text() == before
+    assert (out / "timing.json").read_text() == timing  # the figures of the run that did the work stay
+    assert result.timing == json.loads(timing)
     assert result.summary == first_run[1].summary
     assert json.loads((out / "summary.json").read_text()) == first_run[1].summary
 

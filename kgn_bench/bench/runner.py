@@ -5,7 +5,8 @@ A run folder holds ``run.json`` (the run's identity: task config, detector, seed
 ``summary.md`` and ``timing.json``, and with ``record`` the per-trial recordings merged into
 ``recording.rrd``. Rerunning the same command resumes: finished trials are kept, a line cut short by a
 kill is dropped, and only missing trials run. Trial outcomes depend only on (task, seed, index), so the
-summary is the same whatever the worker count or interruptions; ``timing.json`` holds the wall-clock figures.
+summary is the same whatever the worker count or interruptions; ``timing.json`` holds the wall-clock figures
+of the last invocation that ran trials.
 """
 
 from __future__ import annotations
@@ -210,8 +211,12 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
     summary = summarise(records, run_meta)
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     atomic_write_text(out / "summary.md", summary_markdown(summary))
-    timing = timing_summary(records, wall, len(todo), workers)
-    atomic_write_text(out / "timing.json", json.dumps(timing, indent=2) + "\n")
+    timing_file = out / "timing.json"
+    if todo or not timing_file.is_file():  # a resume with nothing left to run keeps the figures of the run
+        timing = timing_summary(records, wall, len(todo), workers)
+        atomic_write_text(timing_file, json.dumps(timing, indent=2) + "\n")
+    else:
+        timing = json.loads(timing_file.read_text())
     if record:
         parts = sorted(rec_dir.glob("trial_*.rrd"))
         if parts:
