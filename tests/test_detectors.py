@@ -203,3 +203,13 @@ def test_random_detector_on_a_bare_table_and_bad_input():
     assert len(det.detect(_valid(camera_pose=down))) == 0
     with pytest.raises(DetectorError):
         det.detect(_valid(depth=np.zeros((H, W), np.float32)))
+
+
+def test_an_object_in_the_bin_near_the_table_edge_is_not_on_the_table():
+    # the bin's inner side reaches under the table's footprint (|y| < 0.5): an object placed there is done
+    x, y = BIN.centre[0], -0.49
+    assert BIN.contains(np.array([x, y, 0.05]))
+    scene = Scene([SceneObject(BOX, (1, 0, 0), make_pose(t=(x, y, 0.05))),
+                   SceneObject(BOX, (1, 0, 0), make_pose(t=(x, -0.40, 0.05))),  # on the table beside the bin
+                   SceneObject(BOX, (1, 0, 0), make_pose(t=(0.8, 0.0, 0.05)))])  # fallen off the table
+    assert [on_table(scene, i) for i in range(3)] == [False, True, False]

@@ -17,6 +17,7 @@ from kgn_bench.geometry import invert_pose, make_pose, rot_z
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes.base import EVAL_DENSITY
 from kgn_bench.sim.collision import label_collisions
+from kgn_bench.sim.robot import BIN
 from kgn_bench.sim.scene import TABLE_HALF_SIZE, Scene
 
 from .base import Candidates, DetectorError, Observation
@@ -33,9 +34,10 @@ def tilted(grasps: GraspSet, angles: tuple[float, ...]) -> GraspSet:
 
 
 def on_table(scene: Scene, i: int) -> bool:
-    """Whether object ``i`` rests on the table top (not in the bin, not fallen off)."""
+    """Whether object ``i`` rests on the table top (not in the bin, not fallen off). The bin's inner side
+    reaches 3 cm under the table's footprint, so an object in the bin is never on the table."""
     t = scene.object_pose(i)[:3, 3]
-    return bool(-0.01 < t[2] < 0.5 and np.all(np.abs(t[:2]) < TABLE_HALF_SIZE))
+    return bool(-0.01 < t[2] < 0.5 and np.all(np.abs(t[:2]) < TABLE_HALF_SIZE) and not BIN.contains(t))
 
 
 class OracleDetector:
