@@ -52,7 +52,8 @@ class SelectorConfig:
     how far the chosen grasp may move along its closing axis to centre the observed points between the jaws
     (default 0.02: kgnv2 single-object success 84.2 % without, 91.7 % with; README "Selector study").
     ``level_deg`` (degrees, 0 = off): grasps approaching within this angle of straight down get a horizontal
-    closing axis (``bench.selector.level_poses``; default 30: kgnv2 single-object 91.7 % without, 95.8 % with)."""
+    closing axis (``bench.selector.level_poses``; default 30: kgnv2 single-object 91.7 % without, 95.8 % with).
+    ``palm_margin`` (m, default 0): how much the palm and wrist boxes grow in the collision check."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
@@ -69,6 +70,7 @@ class SelectorConfig:
     search_step: float = 0.005
     centre_range: float = 0.02
     level_deg: float = 30.0
+    palm_margin: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -222,6 +224,8 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         raise ConfigError(f"{where}: selector.approach_search, closing_search and search_step must be ≥ 0")
     if not 0.0 <= sel.level_deg < 90.0:
         raise ConfigError(f"{where}: selector.level_deg must be in [0, 90), got {sel.level_deg}")
+    if not 0.0 <= sel.palm_margin <= 0.05:
+        raise ConfigError(f"{where}: selector.palm_margin must be in [0, 0.05] m, got {sel.palm_margin}")
     if sel.centre_range < 0:
         raise ConfigError(f"{where}: selector.centre_range must be ≥ 0, got {sel.centre_range}")
     if (sel.approach_search > 0 or sel.closing_search > 0) and not 0.0005 <= sel.search_step <= 0.05:

@@ -297,3 +297,14 @@ def test_level_poses_makes_near_top_down_closing_axes_horizontal():
     assert np.allclose(level_poses(tilt[None], 5.0)[0], tilt)  # 8° + leaning approach is outside a 5° cone
     R = out[0][:3, :3]
     np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+
+
+def test_palm_margin_keeps_the_palm_off_points_just_beside_it(points, ik):
+    # nine points 5 mm beside the palm's face (world x = −0.03 is grasp y = +0.03; palm half breadth 0.025),
+    # at the palm's height above the box: clear of the palm itself, inside it grown by 1 cm
+    post = np.array([[-0.03, y, z] for y in (-0.01, 0.0, 0.01) for z in (0.09, 0.10, 0.11)])
+    cloud = np.concatenate([points, post])
+    grasp = [_pose((0.0, 0.0, 0.02))]
+    assert _select(grasp, [0.06], cloud, ik).index == 0
+    sel = _select(grasp, [0.06], cloud, ik, cfg=replace(CFG, palm_margin=0.01))
+    assert sel.index is None and sel.rejected["collision"] == 1

@@ -5,9 +5,9 @@ Score: ``s = c − λ·RE`` (``confidence_minus_error``, the default) or the pap
 counted:
 
 1. ``width``: 0 < w ≤ the gripper's maximum opening;
-2. ``collision``: the gripper's boxes (fingers at the candidate's width, palm, wrist), swept from the
-   pre-grasp back-off to the grasp, contain fewer than ``collision_points`` observed points and stay
-   ``table_clearance`` above the table top;
+2. ``collision``: the gripper's boxes (fingers at the candidate's width, palm, wrist; palm and wrist grown by
+   ``palm_margin``), swept from the pre-grasp back-off to the grasp, contain fewer than ``collision_points``
+   observed points and stay ``table_clearance`` above the table top;
 3. ``occluded``: the palm and wrist, swept the same way, stay out of space the camera cannot see: a
    sample point of them lying more than ``shadow_margin`` behind the observed surface at its pixel
    (hidden behind an object) may be inside an unseen part of that object. Only the palm and wrist are
@@ -133,6 +133,11 @@ def _swept(box: GripperBox, back: float) -> GripperBox:
     """The volume a grasp-frame box sweeps moving from ``back`` m behind along −x to its place."""
     half = box.half + np.array([back / 2.0, 0.0, 0.0])
     return GripperBox(box.name, box.centre - np.array([back / 2.0, 0.0, 0.0]), half)
+
+
+def _grown(box: GripperBox, margin: float) -> GripperBox:
+    """``box`` grown by ``margin`` (m) on every side."""
+    return GripperBox(box.name, box.centre, box.half + margin)
 
 
 def _union_bounds(boxes: list[GripperBox]) -> tuple[np.ndarray, np.ndarray]:
@@ -278,7 +283,8 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
             sel.rejected["width"] += 1
             continue
         open_w = float(GRIPPER.opening(w))
-        boxes = [_swept(b, back) for b in GRIPPER.boxes(open_w)]
+        boxes = [_swept(_grown(b, cfg.palm_margin) if b.name in ("palm", "wrist") else b, back)
+                 for b in GRIPPER.boxes(open_w)]
         R = poses[k][:3, :3]
         local0 = (points - poses[k][:3, 3]) @ R  # observed points in the candidate's grasp frame
         lo, hi = _union_bounds([*boxes, GRIPPER.closing_region(open_w)])
