@@ -81,18 +81,26 @@ def _cmd_perf_data(args) -> int:
     return 0
 
 
+def _apply_settings(task, settings: list[str] | None):
+    """``task`` with each ``section.name=value`` of ``--set`` applied (``ConfigError`` names a bad one)."""
+    from kgn_bench.config import ConfigError, apply_override
+
+    for setting in settings or ():
+        key, sep, value = setting.partition("=")
+        if not sep:
+            raise ConfigError(f"--set {setting!r}: expected section.name=value")
+        task = apply_override(task, key.strip(), value.strip())
+    return task
+
+
 def _cmd_run(args) -> int:
     from kgn_bench.bench.runner import RunError, run_benchmark
-    from kgn_bench.config import ConfigError, apply_override, load_task, validate
+    from kgn_bench.config import ConfigError, load_task, validate
 
     try:
         task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
         validate(task, str(args.task))
-        for setting in args.set or ():
-            key, sep, value = setting.partition("=")
-            if not sep:
-                raise ConfigError(f"--set {setting!r}: expected section.name=value")
-            task = apply_override(task, key.strip(), value.strip())
+        task = _apply_settings(task, args.set)
         out = args.out or Path("runs") / f"{task.name}_{args.detector.replace(':', '.')}_seed{task.seed}"
         result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
                                progress=not args.quiet)
@@ -144,6 +152,8 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_benchmark(args) -> int:
+    from dataclasses import replace
+
     from kgn_bench.bench.benchmark import load_plan, run_plan
     from kgn_bench.bench.report import ReportError, build_report, load_summaries
     from kgn_bench.bench.runner import RunError
@@ -151,6 +161,7 @@ def _cmd_benchmark(args) -> int:
 
     try:
         plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
+        plan = replace(plan, tasks=tuple(_apply_settings(t, args.set) for t in plan.tasks))
         folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet)
         text, _ = build_report(load_summaries(folders), args.out or args.runs)
     except (ConfigError, RunError, ReportError, ValueError) as e:
@@ -411,6 +422,8 @@ def build_parser() -> argparse.ArgumentParser:
     bm.add_argument("--workers", type=_int_at_least(1), default=2)
     bm.add_argument("--runs", type=Path, default=Path("runs/benchmark"), help="run folders (default runs/benchmark)")
     bm.add_argument("--out", type=Path, help="report folder (default: the runs folder)")
+    bm.add_argument("--set", action="append", metavar="SECTION.NAME=VALUE",
+                    help="override one setting of every task, e.g. selector.palm_margin=0.01 (repeatable)")
     bm.add_argument("--quiet", action="store_true", help="no progress bars")
     bm.set_defaults(func=_cmd_benchmark)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -42,13 +43,24 @@ def test_tiny_plan_runs_every_pair_and_reports(tmp_path, capsys):
     (tmp_path / "tiny.toml").write_text(task.split("[objects]")[0] + '[objects]\nset = ["sphere", "cuboid"]\n')
     plan = tmp_path / "plan.toml"
     plan.write_text("[benchmark]\ntasks = ['tiny']\ndetectors = ['random', 'oracle']\n")
-    rc = main(["benchmark", str(plan), "--runs", str(tmp_path / "runs"), "--workers", "1", "--quiet"])
+    rc = main(["benchmark", str(plan), "--runs", str(tmp_path / "runs"), "--workers", "1", "--quiet",
+               "--set", "selector.palm_margin=0.005"])
     assert rc == 0
     for det in ("random", "oracle"):
         assert (tmp_path / "runs" / "tiny" / det / "summary.json").is_file()
+        run = json.loads((tmp_path / "runs" / "tiny" / det / "run.json").read_text())
+        assert run["config"]["selector"]["palm_margin"] == 0.005  # --set reached every task
     out = capsys.readouterr().out
     assert "| random |" in out and "| oracle |" in out
     assert (tmp_path / "runs" / "benchmark.png").is_file()
     # the report command rebuilds it from the folder of runs
     assert main(["report", str(tmp_path / "runs"), "--out", str(tmp_path / "rep")]) == 0
     assert (tmp_path / "rep" / "benchmark.md").read_text().count("| oracle |") == 2  # table + failures
+
+
+def test_benchmark_rejects_a_bad_setting_before_running(tmp_path, capsys):
+    rc = main(["benchmark", str(TASKS / "benchmark.toml"), "--runs", str(tmp_path / "runs"), "--quiet",
+               "--set", "selector.palm_width=1"])
+    assert rc != 0
+    assert "unknown setting 'selector.palm_width'" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
