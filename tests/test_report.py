@@ -11,14 +11,15 @@ from kgn_bench.bench.report import ReportError, build_report, load_summaries
 from kgn_bench.bench.stats import Rate
 
 
-def _run(folder, task, detector, success, clear=None, failures=None):
-    """Write a run folder whose summary has ``success`` = (k, n) and optionally ``clear``."""
+def _run(folder, task, detector, success, clear=None, failures=None, per_object=None):
+    """Write a run folder whose summary has ``success`` = (k, n), optionally ``clear`` and per-object (k, n)."""
     rates = {"success": Rate(*success).to_dict()}
     if clear is not None:
         rates["clear"] = Rate(*clear).to_dict()
     summary = {"task": task, "detector": detector, "protocol": "multi_object" if clear else "single_object",
                "seed": 0, "trials": success[1], "attempts": success[1], "rates": rates,
-               "failures": {"missed": 0, "collision": 0, **(failures or {})}}
+               "failures": {"missed": 0, "collision": 0, **(failures or {})},
+               "per_object": {name: Rate(*kn).to_dict() for name, kn in (per_object or {}).items()}}
     folder.mkdir(parents=True)
     (folder / "summary.json").write_text(json.dumps(summary))
     return folder
@@ -26,10 +27,11 @@ def _run(folder, task, detector, success, clear=None, failures=None):
 
 def test_report_rows_columns_paper_and_failures(tmp_path):
     runs = [
-        _run(tmp_path / "a", "single_object", "kgnv2", (114, 120), failures={"missed": 4, "collision": 2}),
+        _run(tmp_path / "a", "single_object", "kgnv2", (114, 120), failures={"missed": 4, "collision": 2},
+             per_object={"ring": (55, 60), "cuboid": (59, 60)}),
         _run(tmp_path / "b", "single_household", "kgnv2", (108, 120), failures={"missed": 12}),
         _run(tmp_path / "c", "multi_object", "kgnv2", (150, 170), clear=(148, 150), failures={"collision": 20}),
-        _run(tmp_path / "d", "single_object", "oracle", (119, 120)),
+        _run(tmp_path / "d", "single_object", "oracle", (119, 120), per_object={"ring": (60, 60)}),
         _run(tmp_path / "e", "my_task", "random", (3, 60)),
     ]
     text, payload = build_report(load_summaries(runs), tmp_path / "out")
@@ -44,6 +46,12 @@ def test_report_rows_columns_paper_and_failures(tmp_path):
     assert [d for d in payload["detectors"]] == ["kgnv2", "random", "oracle"]  # fixed detector order
     assert payload["failures"]["kgnv2"]["missed"] == 16 and payload["failures"]["kgnv2"]["collision"] == 22
     assert payload["detectors"]["oracle"]["single, primitives"]["k"] == 119
+    lines = text.splitlines()
+    at = lines.index("**single_object** (success)")
+    assert lines[at + 2: at + 6] == ["| detector | cuboid | ring |", "|---|---:|---:|",
+                                     "| kgnv2 | 98 (59/60) | 92 (55/60) |", "| oracle | — | 100 (60/60) |"]
+    assert "**multi_object**" not in text  # no per-object rates in that run
+    assert payload["per_object"]["single_object"]["oracle"]["ring"]["k"] == 60
     img = cv2.imread(str(tmp_path / "out" / "benchmark.png"))
     assert img is not None and img.shape[0] == 520
     assert (tmp_path / "out" / "benchmark.md").read_text() == text

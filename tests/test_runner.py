@@ -164,7 +164,7 @@ def test_clearance_scene(tmp_path):
     (record,) = read_trials(tmp_path / "multi" / "trials.jsonl")
     assert record["protocol"] == "multi_object" and len(record["objects"]) == 2
     assert set(record["objects"]) <= set(task.objects)
-    assert record["placed"] == 2
+    assert record["placed"] == 2 and sorted(record["placed_objects"]) == sorted(record["objects"])
     attempts = record["attempts"]
     assert 1 <= len(attempts) <= task.execution.max_attempts_per_object * 2
     assert record["removed"] == sum(a["success"] for a in attempts) <= 2

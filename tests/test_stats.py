@@ -57,8 +57,8 @@ def test_rate_dict_round_trip_and_text():
     assert math.isnan(Rate(0, 0).value)
 
 
-def _attempt(success, reason=None, rejected=None):
-    return {"success": success, "reason": None if success else reason, "rejected": rejected or {}}
+def _attempt(success, reason=None, rejected=None, obj=None):
+    return {"success": success, "reason": None if success else reason, "rejected": rejected or {}, "object": obj}
 
 
 SINGLE = [
@@ -95,12 +95,14 @@ def test_summarise_single_object():
 
 MULTI = [
     {"index": 0, "protocol": "multi_object", "objects": ["cuboid", "ring", "stick"], "placed": 3, "removed": 3,
-     "attempts": [_attempt(True), _attempt(False, "dropped_lift"), _attempt(True), _attempt(True)]},
+     "attempts": [_attempt(True, obj="ring"), _attempt(False, "dropped_lift", obj="cuboid"),
+                  _attempt(True, obj="cuboid"), _attempt(True, obj="stick")]},
     {"index": 1, "protocol": "multi_object", "objects": ["sphere", "cylinder", "ring"], "placed": 3, "removed": 1,
-     "attempts": [_attempt(True), _attempt(False, "collision"), _attempt(False, "collision"),
+     "attempts": [_attempt(True, obj="sphere"), _attempt(False, "collision"), _attempt(False, "collision"),
                   _attempt(False, "unreachable", {"ik": 7})]},
     {"index": 2, "protocol": "multi_object", "objects": ["stick", "cuboid", "cylinder"], "placed": 2, "removed": 2,
-     "attempts": [_attempt(True), _attempt(True)]},
+     "placed_objects": ["stick", "cylinder"],
+     "attempts": [_attempt(True, obj="stick"), _attempt(True, obj="cylinder")]},
 ]  # fmt: skip
 
 
@@ -112,7 +114,10 @@ def test_summarise_multi_object():
     assert s["rates"]["scenes_cleared"] == Rate(2, 3).to_dict()
     assert s["failures"] == {**dict.fromkeys(FAILURE_REASONS, 0), "dropped_lift": 1, "collision": 2,
                              "unreachable": 1}  # fmt: skip
-    assert s["per_object"] == {}
+    # objects of the type put in the bin / placed; the cuboid that fell off in trial 2 was never placed
+    assert s["per_object"] == {"cuboid": Rate(1, 1).to_dict(), "cylinder": Rate(1, 2).to_dict(),
+                               "ring": Rate(1, 2).to_dict(), "sphere": Rate(1, 1).to_dict(),
+                               "stick": Rate(2, 2).to_dict()}
     assert s["selector_rejections"]["ik"] == 7
 
 

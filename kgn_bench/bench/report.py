@@ -3,9 +3,9 @@
 A run folder (``kgn-bench run``) holds ``summary.json`` with its task name, protocol, detector and rates. The
 report puts one row per detector and one column per (task, rate): single-object success on primitives and
 on household objects, multi-object success and clear rate, each as ``rate [Wilson 95 %] (k/n)``; then the
-failure reasons per detector summed over its runs, and the paper's real-robot figures (KGNv2 Tab. III and
-IV) in the columns that correspond to them. Writes ``benchmark.md``, ``benchmark.json`` and ``benchmark.png``
-(a grouped bar chart with interval whiskers).
+failure reasons per detector summed over its runs, the per-object rates of each task, and the paper's
+real-robot figures (KGNv2 Tab. III and IV) in the columns that correspond to them. Writes ``benchmark.md``,
+``benchmark.json`` and ``benchmark.png`` (a grouped bar chart with interval whiskers).
 """
 
 from __future__ import annotations
@@ -145,6 +145,8 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         failures[det] = counts
         attempts = sum(s.get("attempts", 0) for s in runs)
         lines.append(f"| {det} | {attempts} | " + " | ".join(str(counts[r]) for r in FAILURE_REASONS) + " |")
+    per_object = _per_object(summaries, detectors)
+    lines += _per_object_lines(per_object, {s["task"]: s.get("protocol") for s in summaries})
     lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries)]
     text = "\n".join(lines) + "\n"
     payload = {
@@ -152,6 +154,7 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         "detectors": {det: {c.label: (rate(det, c).to_dict() if rate(det, c) else None) for c in columns}
                       for det in detectors},
         "failures": failures,
+        "per_object": per_object,
         "paper": {det: {f"{t}/{r}": {"rate": v, "half_width": h, "trials": n} for (t, r), (v, h, n) in f.items()}
                   for det, f in PAPER.items()},
         "runs": [s["run"] for s in summaries],
@@ -163,6 +166,37 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         atomic_write_text(out / "benchmark.json", json.dumps(payload, indent=1) + "\n")
         _chart(detectors, columns, rate, out / "benchmark.png")
     return text, payload
+
+
+def _per_object(summaries: list[dict[str, Any]], detectors: list[str]) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{task: {detector: {object: rate dict}}}`` for the runs whose summary has per-object rates."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for det in detectors:
+        for s in summaries:
+            if s["detector"] == det and s.get("per_object"):
+                out.setdefault(s["task"], {})[det] = s["per_object"]
+    return out
+
+
+def _per_object_lines(per_object: dict[str, dict[str, dict[str, Any]]], protocols: dict[str, Any]) -> list[str]:
+    """One table per task: detectors × object types, each cell ``rate % (k/n)``."""
+    if not per_object:
+        return []
+    lines = ["", "## Per object", "",
+             "Single-object tasks: successes / attempts on the object. Multi-object tasks: objects of the type put in "
+             "the bin / placed."]
+    for task, rows in per_object.items():
+        names = sorted({name for row in rows.values() for name in row})
+        what = "success" if protocols.get(task) == "single_object" else "put in the bin"
+        lines += ["", f"**{task}** ({what})", "", "| detector | " + " | ".join(names) + " |",
+                  "|---|" + "---:|" * len(names)]
+        for det, row in rows.items():
+            cells = []
+            for name in names:
+                r = Rate.from_dict(row[name]) if name in row else None
+                cells.append(f"{100 * r.value:.0f} ({r.k}/{r.n})" if r and r.n else "—")
+            lines.append(f"| {det} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def _chart(detectors: list[str], columns: list[Column], rate, path: Path) -> None:

@@ -64,6 +64,9 @@ class Rate:
 def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, Any]:
     """The deterministic summary of a run: rates, failure counts, per-object rates, selector rejections.
 
+    Per object type: single-object runs give successes / attempts on that object; multi-object runs give
+    objects of that type put in the bin / placed (the clear rate per type).
+
     ``run`` is the run's identity (task, detector, seed, ...), copied in. Records are sorted by index, so
     the summary does not depend on the order trials finished in.
     """
@@ -79,10 +82,16 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
         rates["clear"] = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records)).to_dict()
         rates["scenes_cleared"] = Rate(sum(r["removed"] == r["placed"] for r in records), len(records)).to_dict()
     per_object: dict[str, list[int]] = {}
-    if run.get("protocol") == "single_object":
-        for r in records:
+    for r in records:
+        if run.get("protocol") == "single_object":  # successes / attempts on the trial's one object
             k, n = per_object.setdefault(r["objects"][0], [0, 0])
             per_object[r["objects"][0]] = [k + sum(a["success"] for a in r["attempts"]), n + len(r["attempts"])]
+        else:  # objects of the type put in the bin / placed
+            for name in r.get("placed_objects", r["objects"]):  # older records: every object
+                per_object.setdefault(name, [0, 0])[1] += 1
+            for a in r["attempts"]:
+                if a["success"]:
+                    per_object[a["object"]][0] += 1
     return {
         **run,
         "trials": len(records),
@@ -108,7 +117,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
              "| rate | value [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
     lines += [_rate_row(name, d) for name, d in summary["rates"].items()]
     if summary["per_object"]:
-        lines += ["", "| object | success [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
+        what = "success" if summary.get("protocol") == "single_object" else "put in the bin"
+        lines += ["", f"| object | {what} [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
         lines += [_rate_row(name, d) for name, d in summary["per_object"].items()]
     lines += ["", "| failure reason | attempts |", "| --- | --- |"]
     lines += [f"| {k} | {v} |" for k, v in summary["failures"].items()]

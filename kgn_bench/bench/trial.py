@@ -116,7 +116,7 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
         detector.attach(scene)  # type: ignore[attr-defined]
     cam = camera_pose(task)
     names = [o.shape.name for o in scene.objects]
-    placed = sum(on_table(scene, i) for i in range(len(names)))
+    placed_names = [name for i, name in enumerate(names) if on_table(scene, i)]
     attempts: list[dict[str, Any]] = []
     t = clock.add("setup", t)
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
@@ -160,7 +160,8 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
         "index": index,
         "protocol": task.protocol,
         "objects": names,
-        "placed": int(placed),
+        "placed": len(placed_names),
+        "placed_objects": placed_names,
         "removed": int(removed),
         "attempts": attempts,
         "timing": {k: round(v, 4) for k, v in clock.totals.items()},
