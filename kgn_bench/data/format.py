@@ -206,8 +206,8 @@ def read_view(folder: Path, view: int) -> RGBD:
 
 
 def atomic_write(path: Path, write: Callable[[BinaryIO], None]) -> None:
-    """Call ``write`` on a temporary file beside ``path``, fsync it and rename it into place, so that
-    ``path`` is either the old file or the whole new one, never a part."""
+    """Call ``write`` on a temporary file beside ``path``, fsync it and rename it into place (mode 0644, like
+    a plain ``open``), so that ``path`` is either the old file or the whole new one, never a part."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -215,6 +215,7 @@ def atomic_write(path: Path, write: Callable[[BinaryIO], None]) -> None:
             write(f)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp creates 0600
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
