@@ -53,7 +53,9 @@ class SelectorConfig:
     (default 0.02: kgnv2 single-object success 84.2 % without, 91.7 % with; README "Selector study").
     ``level_deg`` (degrees, 0 = off): grasps approaching within this angle of straight down get a horizontal
     closing axis (``bench.selector.level_poses``; default 30: kgnv2 single-object 91.7 % without, 95.8 % with).
-    ``palm_margin`` (m, default 0): how much the palm and wrist boxes grow in the collision check."""
+    ``palm_margin`` (m): how much the palm and wrist boxes grow in the collision check (default 0.01: the
+    observed cloud is sparse and one-sided, so the bare palm grazed rims and neighbours it did not see;
+    kgnv2 clearance 93.3 → 96.0 % clear, collisions 9 → 1; ``results/sweeps/palm_margin.md``)."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
@@ -70,7 +72,7 @@ class SelectorConfig:
     search_step: float = 0.005
     centre_range: float = 0.02
     level_deg: float = 30.0
-    palm_margin: float = 0.0
+    palm_margin: float = 0.01
 
 
 @dataclass(frozen=True)

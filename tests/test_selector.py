@@ -25,8 +25,8 @@ from kgn_bench.sim.robot import READY_Q
 HEIGHT = 0.05
 FAR = np.array([0.45, 0.0])  # the second box: 1 m from the arm base
 EXEC = ExecutionConfig()
-CFG = SelectorConfig(approach_search=0.0, closing_search=0.0, centre_range=0.0, level_deg=0.0,
-                     reprojection_weight=0.02)  # every check at the candidate's own pose
+CFG = SelectorConfig(approach_search=0.0, closing_search=0.0, centre_range=0.0, level_deg=0.0, palm_margin=0.0,
+                     reprojection_weight=0.02)  # every check at the candidate's own pose, the bare boxes
 SEARCH = SelectorConfig()  # the default: shifted poses are tried too
 # top-down grasp frame: approach x = world −z, closing z = world +y, y = z × x = world −x
 DOWN = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
