@@ -55,7 +55,7 @@ def test_tiny_plan_runs_every_pair_and_reports(tmp_path, capsys):
     assert (tmp_path / "runs" / "benchmark.png").is_file()
     # the report command rebuilds it from the folder of runs
     assert main(["report", str(tmp_path / "runs"), "--out", str(tmp_path / "rep")]) == 0
-    assert (tmp_path / "rep" / "benchmark.md").read_text().count("| oracle |") == 2  # table + failures
+    assert (tmp_path / "rep" / "benchmark.md").read_text().count("| oracle |") == 3  # table, failures, per object
 
 
 def test_benchmark_rejects_a_bad_setting_before_running(tmp_path, capsys):
