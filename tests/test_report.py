@@ -29,7 +29,8 @@ def test_report_rows_columns_paper_and_failures(tmp_path):
     runs = [
         _run(tmp_path / "a", "single_object", "kgnv2", (114, 120), failures={"missed": 4, "collision": 2},
              per_object={"ring": (55, 60), "cuboid": (59, 60)}),
-        _run(tmp_path / "b", "single_household", "kgnv2", (108, 120), failures={"missed": 12}),
+        _run(tmp_path / "b", "single_household", "kgnv2", (108, 120), failures={"missed": 12},
+             per_object={"mug": (54, 60), "can": (54, 60)}),
         _run(tmp_path / "c", "multi_object", "kgnv2", (150, 170), clear=(148, 150), failures={"collision": 20}),
         _run(tmp_path / "d", "single_object", "oracle", (119, 120), per_object={"ring": (60, 60)}),
         _run(tmp_path / "e", "my_task", "random", (3, 60)),
@@ -52,6 +53,9 @@ def test_report_rows_columns_paper_and_failures(tmp_path):
                                      "| kgnv2 | 98 (59/60) | 92 (55/60) |", "| oracle | — | 100 (60/60) |"]
     assert "**multi_object**" not in text  # no per-object rates in that run
     assert payload["per_object"]["single_object"]["oracle"]["ring"]["k"] == 60
+    assert text.index("**single_object**") < text.index("**single_household**")  # column order
+    text_reversed, _ = build_report(load_summaries(runs[::-1]))  # the report command finds runs in path order
+    assert text_reversed.split("## Per object")[1].split("Runs:")[0] == text.split("## Per object")[1].split("Runs:")[0]
     img = cv2.imread(str(tmp_path / "out" / "benchmark.png"))
     assert img is not None and img.shape[0] == 520
     assert (tmp_path / "out" / "benchmark.md").read_text() == text

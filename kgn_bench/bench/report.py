@@ -18,7 +18,7 @@ from typing import Any
 from kgn_bench.data.format import atomic_write_text
 
 from .attempt import FAILURE_REASONS
-from .stats import Rate
+from .stats import Rate, per_object_meaning
 
 __all__ = ["COLUMNS", "DETECTOR_ORDER", "PAPER", "Column", "ReportError", "build_report", "load_summaries"]
 
@@ -145,7 +145,7 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         failures[det] = counts
         attempts = sum(s.get("attempts", 0) for s in runs)
         lines.append(f"| {det} | {attempts} | " + " | ".join(str(counts[r]) for r in FAILURE_REASONS) + " |")
-    per_object = _per_object(summaries, detectors)
+    per_object = _per_object(summaries, list(dict.fromkeys(c.task for c in columns)), detectors)
     lines += _per_object_lines(per_object, {s["task"]: s.get("protocol") for s in summaries})
     lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries)]
     text = "\n".join(lines) + "\n"
@@ -168,13 +168,16 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
     return text, payload
 
 
-def _per_object(summaries: list[dict[str, Any]], detectors: list[str]) -> dict[str, dict[str, dict[str, Any]]]:
-    """``{task: {detector: {object: rate dict}}}`` for the runs whose summary has per-object rates."""
+def _per_object(summaries: list[dict[str, Any]], tasks: list[str],
+                detectors: list[str]) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{task: {detector: {object: rate dict}}}`` in report order (whatever order the runs came in), for
+    the runs whose summary has per-object rates."""
+    found = {(s["task"], s["detector"]): s["per_object"] for s in summaries if s.get("per_object")}
     out: dict[str, dict[str, dict[str, Any]]] = {}
-    for det in detectors:
-        for s in summaries:
-            if s["detector"] == det and s.get("per_object"):
-                out.setdefault(s["task"], {})[det] = s["per_object"]
+    for task in tasks:
+        for det in detectors:
+            if (task, det) in found:
+                out.setdefault(task, {})[det] = found[(task, det)]
     return out
 
 
@@ -187,9 +190,8 @@ def _per_object_lines(per_object: dict[str, dict[str, dict[str, Any]]], protocol
              "the bin / placed."]
     for task, rows in per_object.items():
         names = sorted({name for row in rows.values() for name in row})
-        what = "success" if protocols.get(task) == "single_object" else "put in the bin"
-        lines += ["", f"**{task}** ({what})", "", "| detector | " + " | ".join(names) + " |",
-                  "|---|" + "---:|" * len(names)]
+        lines += ["", f"**{task}** ({per_object_meaning(protocols.get(task))})", "",
+                  "| detector | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
         for det, row in rows.items():
             cells = []
             for name in names:

@@ -16,7 +16,7 @@ import numpy as np
 from .attempt import FAILURE_REASONS
 from .selector import REJECTIONS
 
-__all__ = ["Rate", "summarise", "summary_markdown", "wilson_interval"]
+__all__ = ["Rate", "per_object_meaning", "summarise", "summary_markdown", "wilson_interval"]
 
 Z95 = 1.959963984540054
 
@@ -61,6 +61,12 @@ class Rate:
         return f"{100 * self.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] ({self.k}/{self.n})"
 
 
+def per_object_meaning(protocol: str | None) -> str:
+    """What a summary's per-object rate counts under ``protocol``: ``success`` (single-object trials) or
+    ``put in the bin`` (clearance: objects of the type removed / placed)."""
+    return "success" if protocol == "single_object" else "put in the bin"
+
+
 def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, Any]:
     """The deterministic summary of a run: rates, failure counts, per-object rates, selector rejections.
 
@@ -82,8 +88,9 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
         rates["clear"] = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records)).to_dict()
         rates["scenes_cleared"] = Rate(sum(r["removed"] == r["placed"] for r in records), len(records)).to_dict()
     per_object: dict[str, list[int]] = {}
+    single = run.get("protocol") == "single_object"
     for r in records:
-        if run.get("protocol") == "single_object":  # successes / attempts on the trial's one object
+        if single:  # successes / attempts on the trial's one object
             k, n = per_object.setdefault(r["objects"][0], [0, 0])
             per_object[r["objects"][0]] = [k + sum(a["success"] for a in r["attempts"]), n + len(r["attempts"])]
         else:  # objects of the type put in the bin / placed
@@ -117,8 +124,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
              "| rate | value [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
     lines += [_rate_row(name, d) for name, d in summary["rates"].items()]
     if summary["per_object"]:
-        what = "success" if summary.get("protocol") == "single_object" else "put in the bin"
-        lines += ["", f"| object | {what} [Wilson 95 %] | k / n |", "| --- | --- | --- |"]
+        lines += ["", f"| object | {per_object_meaning(summary.get('protocol'))} [Wilson 95 %] | k / n |",
+                  "| --- | --- | --- |"]
         lines += [_rate_row(name, d) for name, d in summary["per_object"].items()]
     lines += ["", "| failure reason | attempts |", "| --- | --- |"]
     lines += [f"| {k} | {v} |" for k, v in summary["failures"].items()]
