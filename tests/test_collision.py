@@ -4,10 +4,11 @@ import numpy as np
 import trimesh
 
 from kgn_bench.geometry import invert_pose, make_pose
+from kgn_bench.grasp import GraspSet
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes import EVAL_DENSITY, TRAIN_DENSITY
 from kgn_bench.shapes.primitives import Cuboid, Cylinder, Sphere
-from kgn_bench.sim.collision import label_collisions, label_scene, proxy_hits_table
+from kgn_bench.sim.collision import body_collisions, label_collisions, label_scene, proxy_hits_table
 from kgn_bench.sim.scene import Scene, SceneObject
 
 
@@ -79,3 +80,40 @@ def test_proxy_state_is_restored_after_labelling():
     proxy_body = scene.model.geom_bodyid[scene.proxy_geom]
     assert scene.data.xpos[proxy_body][2] > 10  # parked far away
     assert invert_pose(scene.object_pose(0)).shape == (4, 4)
+
+
+def test_body_collisions_see_the_palm_and_wrist_where_the_proxy_does_not():
+    # a top-down grasp on a 4 cm box, closing along world y; neighbours 9 cm away along the closing axis:
+    # outside the proxy (it reaches w/2 + 2 cm = 4 cm), inside the palm's span (±12 cm)
+    down = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
+    grasp = make_pose(down, [0.0, 0.0, 0.03])[None]
+    box = SceneObject(Cuboid((0.04, 0.04, 0.05)), (1, 0, 0), make_pose(t=[0.0, 0.0, 0.025]))
+
+    def scene_with(height):
+        post = SceneObject(Cylinder(0.015, height), (0, 1, 0), make_pose(t=[0.0, 0.09, height / 2]))
+        return Scene([box, post])
+
+    tall, short = scene_with(0.16), scene_with(0.06)  # the palm's bottom passes 3 + 7 = 10 cm above the table
+    for scene in (tall, short):
+        assert not label_collisions(scene, 0, GraspSet.unlabelled(grasp, np.array([0.04]))).collides[0]
+    assert body_collisions(tall, grasp, back=0.10)[0]
+    assert not body_collisions(short, grasp, back=0.10)[0]
+    # the swept path counts: a post reaching only above the grasped height is hit on the way down
+    assert body_collisions(scene_with(0.16), grasp, back=0.0)[0]
+    # a horizontal approach 3 cm over the table drags the wrist (4.5 cm radius) through the table top
+    side = make_pose(np.stack([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]], axis=1), [0.0, 0.0, 0.03])
+    assert body_collisions(Scene([box]), side[None], back=0.10)[0]
+    assert not body_collisions(Scene([box]), grasp, back=0.10)[0]
+
+
+def test_a_wide_proxy_sees_a_neighbour_at_its_far_end():
+    # the proxy is compiled 10 cm wide; a 16 cm grasp's proxy is 20 cm wide (w/2 + 2 cm each side). A post
+    # 8.5 cm from the grasp along the closing axis is inside only the part beyond the compiled size: MuJoCo's
+    # midphase (the bounding boxes of bodies with several geoms, like this tube) must be told the new size
+    # too, or the post is missed
+    down = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
+    target = SceneObject(Cylinder(0.06, 0.05), (1, 0, 0), make_pose(t=[0.0, 0.0, 0.025]))
+    post = SceneObject(Cylinder(0.012, 0.1), (0, 1, 0), make_pose(t=[0.0, 0.095, 0.05]))
+    grasp = GraspSet.unlabelled(make_pose(down, [0.0, 0.0, 0.04])[None], np.array([0.16]))
+    assert label_collisions(Scene([target, post]), 0, grasp).collides[0]
+    assert not label_collisions(Scene([target]), 0, grasp).collides[0]

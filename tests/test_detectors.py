@@ -8,6 +8,7 @@ from kgn_bench.detectors import DETECTORS, Candidates, Detector, DetectorError, 
 from kgn_bench.detectors.oracle import TILT_DEG, OracleDetector, on_table, tilted
 from kgn_bench.detectors.random import RandomDetector
 from kgn_bench.geometry import make_pose, rot_z
+from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.shapes.base import EVAL_DENSITY
 from kgn_bench.shapes.primitives import Cuboid, Sphere
 from kgn_bench.sim.camera import REALSENSE, orbit_pose
@@ -106,6 +107,8 @@ def test_registry():
     assert isinstance(rand, RandomDetector) and not rand.privileged and rand.name == "random"
     assert isinstance(oracle, Detector) and isinstance(rand, Detector)
     assert make_detector("oracle") is not oracle  # a fresh instance each time
+    many = make_detector("kgn_bench.detectors.random:sample_and_filter")  # the selector with blind samples
+    assert isinstance(many, RandomDetector) and many.count == 64 and many.name == "random64" and rand.count == 1
 
 
 def test_oracle_needs_the_simulator(cell):
@@ -126,7 +129,15 @@ def test_oracle_returns_the_free_ground_truth_grasps(cell):
     np.testing.assert_allclose(T, BOX_POSE, atol=1e-9)
     family = BOX.grasps(EVAL_DENSITY)
     gt = tilted(family, (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG))).transformed(T)
-    free = ~proxy_hits_table(gt.poses, gt.widths)  # alone on the table, only the table can collide
+    # alone on the table, only the table can collide: with the proxy, or with the palm or wrist anywhere on
+    # the straight approach from the pre-grasp (their boxes swept back by the pre-grasp distance)
+    back = oracle.approach
+    along = np.array([back / 2, 0.0, 0.0])
+    swept = [GripperBox(b.name, b.centre - along, b.half + along)
+             for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())]
+    body_low = np.any([box_corners(b, gt.poses)[..., 2].min(axis=1) < 0.0 for b in swept], axis=0)
+    free = ~proxy_hits_table(gt.poses, gt.widths) & ~body_low
+    assert body_low[~proxy_hits_table(gt.poses, gt.widths)].any()  # the body test removes grasps of its own
     assert 0 < len(cands) == free.sum() < len(gt) == 3 * len(family)
     # every candidate is one of the box's ground-truth grasps or their tilts (same pose and width), once each
     d = np.linalg.norm((world[:, None] - gt.poses[None]).reshape(len(world), len(gt), 16), axis=2)
@@ -160,7 +171,8 @@ def test_oracle_sees_nothing_when_the_table_is_empty(cell):
 
 def test_random_detector_is_seeded(cell):
     _, obs = cell
-    det = RandomDetector()
+    assert RandomDetector().count == 1  # the floor: one blind guess per attempt
+    det = RandomDetector(count=16)
     det.reset([0, 1])
     a = det.detect(obs)
     b = det.detect(obs)  # the stream goes on
@@ -178,7 +190,7 @@ def test_random_detector_is_seeded(cell):
 
 def test_random_detector_grasps_observed_points(cell):
     _, obs = cell
-    det = RandomDetector()
+    det = RandomDetector(count=64)
     det.reset([3, 0])
     cands = det.detect(obs)
     world = cands.world_poses(obs.camera_pose)

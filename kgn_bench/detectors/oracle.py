@@ -4,7 +4,8 @@ It is the harness's upper bound, not a detector: it sees object types, sizes and
 gives. For every object still on the table it returns the evaluation-density families (DESIGN §5), each
 also tilted by ±``TILT_DEG`` about its closing axis (``G · R_z(±α)``: the fingers stay where they pinch,
 the approach leans along the pinched wall or axis, so a ring standing on edge can be taken from above
-at a slant), minus those whose labelling proxy collides (``sim/collision.py``), in the camera frame. Confidence favours
+at a slant), minus those whose labelling proxy collides or whose palm and wrist would hit anything on the straight
+approach from ``approach`` m back (``sim/collision.py``, exact scene geometry), in the camera frame. Confidence favours
 top-down approaches (the executor's easiest) near the object's centre (the stablest):
 ``c = ½ (1 − x_grasp · ẑ_world) − 2 m⁻¹ · ‖t_grasp − t_object‖``. There is no reprojection error (NaN).
 """
@@ -13,10 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from kgn_bench.config import ExecutionConfig
 from kgn_bench.geometry import invert_pose, make_pose, rot_z
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes.base import EVAL_DENSITY
-from kgn_bench.sim.collision import label_collisions
+from kgn_bench.sim.collision import body_collisions, label_collisions
 from kgn_bench.sim.robot import BIN
 from kgn_bench.sim.scene import TABLE_HALF_SIZE, Scene
 
@@ -46,7 +48,8 @@ class OracleDetector:
     name = "oracle"
     privileged = True
 
-    def __init__(self) -> None:
+    def __init__(self, approach: float = ExecutionConfig().pregrasp_distance) -> None:
+        self.approach = approach
         self._scene: Scene | None = None
 
     def attach(self, scene: Scene) -> None:
@@ -66,6 +69,7 @@ class OracleDetector:
             T = scene.object_pose(i)
             family = tilted(obj.shape.grasps(EVAL_DENSITY), (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG)))
             grasps = label_collisions(scene, i, family.transformed(T)).free()
+            grasps = grasps.with_collisions(body_collisions(scene, grasps.poses, self.approach)).free()
             sets.append(grasps)
             centres.append(np.repeat(T[None, :3, 3], len(grasps), axis=0))
         if not sets:

@@ -4,6 +4,12 @@ It picks observed points above the table top (the one fact it uses besides the i
 the table, which any tabletop system knows), and at each puts a grasp whose approach is uniform on the
 downward hemisphere, turned uniformly about the approach, sunk ``sink`` m into the surface, with a width
 uniform in ``width_range``. Confidences are uniform in [0, 1]; no reprojection error.
+
+``count`` grasps per capture, 1 by default: the floor is one blind guess per attempt. The selector still
+vets it (a guess that would collide or enclose nothing is not executed: the attempt fails as
+``no_candidate``), but it has nothing to choose from. With many guesses the selector's checks pick the
+feasible ones and its levelling and centring fix them up: that measures the selector as a sample-and-filter
+planner, not the floor: ``--detector kgn_bench.detectors.random:sample_and_filter`` runs it.
 """
 
 from __future__ import annotations
@@ -14,14 +20,14 @@ from kgn_bench.geometry import invert_pose, make_pose
 
 from .base import Candidates, Observation
 
-__all__ = ["RandomDetector"]
+__all__ = ["RandomDetector", "sample_and_filter"]
 
 
 class RandomDetector:
     name = "random"
     privileged = False
 
-    def __init__(self, count: int = 64, sink: float = 0.015, width_range: tuple[float, float] = (0.02, 0.12),
+    def __init__(self, count: int = 1, sink: float = 0.015, width_range: tuple[float, float] = (0.02, 0.12),
                  min_height: float = 0.005) -> None:
         self.count = count
         self.sink = sink
@@ -59,3 +65,11 @@ class RandomDetector:
         conf = rng.uniform(0.0, 1.0, n)
         cam = invert_pose(observation.camera_pose) @ poses
         return Candidates(cam, widths, conf, np.full(n, np.nan))
+
+
+def sample_and_filter() -> RandomDetector:
+    """64 random guesses per capture (named ``random64``): what the selector's checks, levelling and centring
+    make of blind samples, a measure of the selector rather than the floor."""
+    det = RandomDetector(count=64)
+    det.name = "random64"
+    return det

@@ -1,4 +1,5 @@
-"""Collision labelling of ground-truth grasps with the gripper proxy (reference facts §2.5).
+"""Collision labelling of ground-truth grasps with the gripper proxy (reference facts §2.5), and the
+privileged check of the whole gripper's approach (``body_collisions``, the oracle's).
 
 A grasp collides when its proxy box (``gripper.GRIPPER``) penetrates the table or any object other
 than the one being grasped. The table is the half-space z < 0 under its 1 m² top (the proxy never
@@ -12,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from kgn_bench.grasp import GraspSet
-from kgn_bench.gripper import GRIPPER, GripperGeometry
+from kgn_bench.gripper import GRIPPER, GripperBox, GripperGeometry, box_corners
 from kgn_bench.sim.scene import Scene
 
-__all__ = ["label_collisions", "proxy_hits_table"]
+__all__ = ["body_collisions", "label_collisions", "proxy_hits_table"]
 
 
 def proxy_hits_table(poses: np.ndarray, widths: np.ndarray, gripper: GripperGeometry = GRIPPER) -> np.ndarray:
@@ -52,3 +53,29 @@ def label_scene(scene: Scene, density) -> list[GraspSet]:
         grasps = obj.shape.grasps(density).transformed(scene.object_pose(i))
         out.append(label_collisions(scene, i, grasps))
     return out
+
+
+def _swept_box(box: GripperBox, back: float) -> GripperBox:
+    """The grasp-frame volume ``box`` covers moving from ``back`` m behind (along −x) to its place."""
+    return GripperBox(box.name, box.centre - np.array([back / 2.0, 0.0, 0.0]), box.half + np.array([back / 2.0, 0, 0]))
+
+
+def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: GripperGeometry = GRIPPER) -> np.ndarray:
+    """(N,) bool: the palm or wrist of world grasps ``poses`` (N, 4, 4), swept along the straight approach
+    from ``back`` m behind the grasp, penetrates the table top (z < 0) or any object, the grasped one included.
+
+    The proxy of ``label_collisions`` stands for the fingers and the space they close on; it is 2 cm thick
+    and 10 cm deep, while the palm spans the full jaw travel and the wrist follows it. Between them the two
+    tests cover the whole gripper's approach (the fingers' swept path behind ``−proxy_depth`` lies inside
+    the swept palm). Exact scene geometry, so privileged: the oracle's, never a detector's.
+    """
+    boxes = [_swept_box(b, back) for b in (gripper.palm_box(), gripper.wrist_box())]
+    hits = np.zeros(len(poses), dtype=bool)
+    for box in boxes:
+        hits |= box_corners(box, poses)[..., 2].min(axis=1) < 0.0
+    with scene.proxy_only_collisions():
+        scene.exclude_object_from_proxy(None)
+        for k in np.flatnonzero(~hits):
+            R, t = poses[k, :3, :3], poses[k, :3, 3]
+            hits[k] = any(scene.proxy_hits_object(R @ b.centre + t, R, b.half) for b in boxes)
+    return hits

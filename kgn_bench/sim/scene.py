@@ -171,6 +171,9 @@ class Scene:
         self.camera_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "camera")
         self.proxy_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "proxy")
         self.proxy_mocap = m.body_mocapid[m.geom_bodyid[self.proxy_geom]]
+        proxy_body = m.geom_bodyid[self.proxy_geom]
+        assert m.body_bvhnum[proxy_body] == 1, "the proxy body holds exactly one geom"
+        self._proxy_bvh = int(m.body_bvhadr[proxy_body])
         self.table_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "table")
         self.collision_geoms = np.flatnonzero(m.geom_contype == 1)
         for i, obj in enumerate(objects):
@@ -271,6 +274,7 @@ class Scene:
         m.geom_size[g] = half_extents
         m.geom_rbound[g] = float(np.linalg.norm(half_extents))
         m.geom_aabb[g, 3:] = half_extents
+        m.bvh_aabb[self._proxy_bvh, 3:] = half_extents  # midphase culls with the body's compiled box
         d.mocap_pos[self.proxy_mocap] = centre
         d.mocap_quat[self.proxy_mocap] = quat_wxyz_from_matrix(R)
         mujoco.mj_kinematics(m, d)
