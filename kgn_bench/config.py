@@ -55,7 +55,9 @@ class SelectorConfig:
     closing axis (``bench.selector.level_poses``; default 30: kgnv2 single-object 91.7 % without, 95.8 % with).
     ``palm_margin`` (m): how much the palm and wrist boxes grow in the collision check (default 0.01: the
     observed cloud is sparse and one-sided, so the bare palm grazed rims and neighbours it did not see;
-    kgnv2 clearance 93.3 → 96.0 % clear, collisions 9 → 1; ``results/sweeps/palm_margin.md``)."""
+    kgnv2 clearance 93.3 → 96.0 % clear, collisions 9 → 1; ``results/sweeps/palm_margin.md``).
+    ``palm_pullback``: whether the pose search may pull a grasp back along its approach when only the palm
+    or wrist is in the way (default false: the fingertips then stop above the object's widest part)."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
@@ -73,6 +75,7 @@ class SelectorConfig:
     centre_range: float = 0.02
     level_deg: float = 30.0
     palm_margin: float = 0.01
+    palm_pullback: bool = False
 
 
 @dataclass(frozen=True)

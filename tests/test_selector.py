@@ -308,3 +308,39 @@ def test_palm_margin_keeps_the_palm_off_points_just_beside_it(points, ik):
     assert _select(grasp, [0.06], cloud, ik).index == 0
     sel = _select(grasp, [0.06], cloud, ik, cfg=replace(CFG, palm_margin=0.01))
     assert sel.index is None and sel.rejected["collision"] == 1
+
+
+def test_a_failed_grasp_that_was_shifted_is_not_tried_again(points, ik):
+    # too deep by 2 cm: executed 2.5 cm up the approach from the candidate, beyond retry_distance of it
+    deep = _pose((0.0, 0.0, -0.02))
+    first = _select([deep], [0.06], points, ik, cfg=SEARCH)
+    assert np.linalg.norm(first.grasp[:3, 3] - deep[:3, 3]) > SEARCH.retry_distance
+    np.testing.assert_allclose(first.candidate, deep)
+    assert first.tried.shape == (2, 4, 4)
+    # remembering the executed pose alone would let the same candidate through again; with the candidate too
+    # it is skipped
+    only_executed = select_grasp(deep[None], np.array([0.06]), np.ones(1), np.full(1, np.nan), points, ik, SEARCH,
+                                 EXEC, first.grasp[None])
+    assert only_executed.index == 0
+    again = select_grasp(deep[None], np.array([0.06]), np.ones(1), np.full(1, np.nan), points, ik, SEARCH, EXEC,
+                         first.tried)
+    assert again.index is None and again.rejected["repeat"] == 1
+    assert _select([_pose((0.3, 0.3, 0.02))], [0.06], points, ik).tried.shape == (0, 4, 4)  # nothing selected
+
+
+def test_the_search_does_not_pull_back_a_grasp_whose_palm_alone_is_in_the_way(points, ik):
+    # a shelf of points 5 mm above the palm's bottom face (tip + finger_length) when the grasp is pushed
+    # grasp_depth down, beside the box: the palm meets it, the fingers and the table are clear
+    tip = 0.02 - EXEC.grasp_depth
+    z = tip + GRIPPER.finger_length + 0.005
+    shelf = np.array([[x, y, z] for x in (-0.01, 0.0, 0.01) for y in (0.06, 0.07, 0.08)])
+    cloud = np.concatenate([points, shelf])
+    grasp = [_pose((0.0, 0.0, 0.02))]
+    no_search = replace(SEARCH, palm_margin=0.0, centre_range=0.0)
+    sel = _select(grasp, [0.06], cloud, ik, cfg=no_search)
+    assert sel.index is None and sel.rejected["collision"] == 1  # only moving up would clear the palm
+    pulled = _select(grasp, [0.06], cloud, ik, cfg=replace(no_search, palm_pullback=True))
+    assert pulled.index == 0 and pulled.grasp[2, 3] > tip + 0.004  # fingertips now higher on the box
+    # a grasp whose fingers reach too deep is still pulled back (test above), and one that is clear where
+    # it is is not moved
+    assert _select(grasp, [0.06], points, ik, cfg=no_search).grasp[2, 3] == pytest.approx(tip)

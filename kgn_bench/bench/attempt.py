@@ -7,7 +7,8 @@ touched the table, bin or floor), ``missed`` (no object between both fingers aft
 the TCP when the jaws closed rose less than ``min_lift``: slip at the grasp, while an object that only
 swings about the grasp point still counts as lifted),
 ``dropped_transport`` (lost on the way or released outside the bin), ``physics_error``. Success: the
-object is inside the bin after release. All poses are world frame.
+object is inside the bin after release, also when it slipped from the jaws just before (over the bin there
+is nowhere else to fall; the attempt's detail says so). All poses are world frame.
 """
 
 from __future__ import annotations
@@ -152,9 +153,9 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
         in_bin = BIN.contains(scene.object_pose(held)[:3, 3])
         if park:
             executor.move_joints(PARK_Q)
-        if not carried or not in_bin:
+        if not in_bin:
             where = np.round(scene.object_pose(held)[:3, 3], 3).tolist()
             return AttemptResult("dropped_transport", held, f"object ended at {where}")
-        return AttemptResult(None, held)
+        return AttemptResult(None, held, "" if carried else "slipped from the jaws over the bin, fell in")
     except PhysicsError as e:
         return AttemptResult("physics_error", detail=str(e))

@@ -17,14 +17,19 @@ counted:
 5. ``ik``: IK reaches the pre-grasp and then the grasp within joint limits.
 
 Before these, ``repeat``: a candidate within ``retry_distance`` and ``retry_angle_deg`` (either symmetric
-form) of a grasp that already failed in this trial (``failed``, world poses as executed)
-is skipped: a deterministic detector would otherwise retry the same failing grasp until the consecutive
-failure limit ends the scene.
+form) of a grasp that already failed in this trial (``failed``: world poses, both as executed and as the
+candidate that was chosen, ``Selection.tried``) is skipped: a deterministic detector would otherwise retry
+the same failing grasp until the consecutive failure limit ends the scene. (The executed pose alone is not
+enough: the search below may have moved it by more than ``retry_distance`` from the candidate.)
 
 Checks 2-4 are tried at the candidate's pose and, if it fails one, at poses shifted in its own frame along the
 approach (±``approach_search``) and the closing axis (±``closing_search``) in steps of ``search_step``, nearest
 shift first: a detector whose pose is right but whose distance to the camera is a centimetre or two off (a
-scale error) still yields the grasp it meant. The shifted pose is the one executed.
+scale error) still yields the grasp it meant. The shifted pose is the one executed. Shifts that pull the grasp
+back (against its approach) are only tried when the candidate's own pose puts the fingers into the table or
+into observed points (it reaches too deep); when only the palm or wrist is in the way, or hidden, or nothing
+is enclosed, pulling back would leave the fingertips above the object's widest part, a grip that squeezes
+the object out or lets it slip (``palm_pullback`` = true tries them anyway).
 
 Levelling (``level_deg`` > 0): before everything else, candidates approaching within
 ``level_deg`` of straight down are turned about their own y axis until their closing axis is horizontal
@@ -103,16 +108,26 @@ class Selection:
     """The chosen grasp (world frame) with its pre-grasp and IK solutions, or ``index = None``.
 
     ``rejected`` counts candidates rejected by each check; ``scores`` are all candidates' scores.
+    ``candidate`` is the chosen candidate's world pose as ranked (after levelling, before any shift).
     """
 
     index: int | None
     scores: np.ndarray
     rejected: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REJECTIONS, 0))
     grasp: np.ndarray | None = None
+    candidate: np.ndarray | None = None
     pregrasp: np.ndarray | None = None
     width: float = 0.0
     q_pregrasp: np.ndarray | None = None
     q_grasp: np.ndarray | None = None
+
+    @property
+    def tried(self) -> np.ndarray:
+        """(K, 4, 4) the world poses a failure of this selection should rule out next time: the executed
+        grasp and the candidate it came from (empty when nothing was selected)."""
+        if self.grasp is None or self.candidate is None:
+            return np.zeros((0, 4, 4))
+        return np.stack([self.grasp, self.candidate])
 
     @property
     def reason(self) -> str | None:
@@ -194,18 +209,21 @@ def search_offsets(cfg: SelectorConfig) -> np.ndarray:
     return grid[np.lexsort((grid[:, 1], grid[:, 0], np.hypot(grid[:, 0], grid[:, 1])))]
 
 
-_CHECKS = (None, "collision", "occluded", "enclosure")
+_CHECKS = (None, "collision", "occluded", "enclosure", "collision")
+"""The check each failure code names; code 4 is a collision of the palm or wrist alone (fingers and table clear)."""
 
 
 def _failures(pose: np.ndarray, shifts: np.ndarray, width: float, local: np.ndarray, boxes: list[GripperBox],
               palm_samples: np.ndarray, view: DepthView | None, cfg: SelectorConfig) -> np.ndarray:
     """For ``pose`` moved by each grasp-frame shift (K, 3): the first gripper-prior check it fails, as an
-    index into ``_CHECKS`` (0 = passes all). ``local``: observed points in the grasp frame of ``pose``;
-    ``boxes``: the swept gripper boxes; ``width``: the candidate's (closing region) width."""
+    index into ``_CHECKS`` (0 = passes all; 1 = the fingers hit the table or observed points, 4 = only the palm
+    or wrist hit observed points). ``local``: observed points in the grasp frame of ``pose``; ``boxes``: the
+    swept gripper boxes (fingers first); ``width``: the candidate's (closing region) width."""
     R, t = pose[:3, :3], pose[:3, 3]
     low = _lowest_z(boxes, pose) + shifts @ R[2] < cfg.table_clearance - 1e-6
-    hits = sum(_count_inside(local, b, shifts) for b in boxes)
-    code = np.where(low | (hits >= cfg.collision_points), 1, 0)
+    hits = [_count_inside(local, b, shifts) for b in boxes]
+    fingers = sum(h for h, b in zip(hits, boxes) if b.name.endswith("finger"))
+    code = np.where(low | (fingers >= cfg.collision_points), 1, np.where(sum(hits) >= cfg.collision_points, 4, 0))
     todo = np.flatnonzero(code == 0)
     if view is not None and len(todo):
         world = (palm_samples[None] + shifts[todo, None]) @ R.T + t
@@ -295,6 +313,8 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
         codes = _failures(poses[k], shifts[:1], *args)  # most candidates pass or fail where they are
         if codes[0] != 0 and len(shifts) > 1:
             codes = np.concatenate([codes, _failures(poses[k], shifts[1:], *args)])
+            if codes[0] != 1 and not cfg.palm_pullback:
+                codes[1:][offsets[1:, 0] < 0] = -1  # pulling back would only leave a shallower grip
         passing = np.flatnonzero(codes == 0)
         if len(passing) == 0:
             sel.rejected[_CHECKS[codes[0]]] += 1
@@ -321,6 +341,7 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
             if r_grasp.ok:
                 sel.index = int(k)
                 sel.grasp, sel.pregrasp, sel.width = form, pre, open_w
+                sel.candidate = poses[k].copy()
                 sel.q_pregrasp, sel.q_grasp = r_pre.q, r_grasp.q
                 return sel
         sel.rejected["ik"] += 1

@@ -121,7 +121,7 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     t = clock.add("setup", t)
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
     consecutive = 0
-    failed: list[np.ndarray] = []  # grasps (world) that failed in this trial
+    failed: list[np.ndarray] = []  # grasps (world; executed and as chosen) that failed in this trial
     noise = DepthNoise(task.camera.depth_noise) if task.camera.depth_noise > 0 else None
     with SceneRenderer(scene) as renderer:
         while len(attempts) < max_attempts and consecutive < task.execution.max_consecutive_failures:
@@ -140,8 +140,8 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
             attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
                                            np.array(failed).reshape(-1, 4, 4))
             attempts.append(attempt)
-            if not attempt["success"] and sel is not None and sel.grasp is not None:
-                failed.append(sel.grasp)
+            if not attempt["success"] and sel is not None:
+                failed.extend(sel.tried)
             if recorder is not None:
                 if cands is not None and len(cands):
                     recorder.log_candidates(cands.world_poses(cam), cands.widths, sel.scores, sel.index,
