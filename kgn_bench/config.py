@@ -56,8 +56,10 @@ class SelectorConfig:
     ``palm_margin`` (m): how much the palm and wrist boxes grow in the collision check (default 0.01: the
     observed cloud is sparse and one-sided, so the bare palm grazed rims and neighbours it did not see;
     kgnv2 clearance 93.3 → 96.0 % clear, collisions 9 → 1; ``results/sweeps/palm_margin.md``).
-    ``palm_pullback``: whether the pose search may pull a grasp back along its approach when only the palm
-    or wrist is in the way (default false: the fingertips then stop above the object's widest part)."""
+    ``min_bite`` (m, 0 = off): how far up from the fingertips the enclosed observed points must reach, unless
+    the table stops the fingertips first (the enclosure check; the pose search then pushes a shallow grasp
+    deeper; default 0.01: kgnv2 clearance 85.7 → 93.7 % success, household mix 78.7 → 91.8 %;
+    ``results/sweeps/min_bite.md``)."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
@@ -75,7 +77,7 @@ class SelectorConfig:
     centre_range: float = 0.02
     level_deg: float = 30.0
     palm_margin: float = 0.01
-    palm_pullback: bool = False
+    min_bite: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -231,6 +233,8 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         raise ConfigError(f"{where}: selector.level_deg must be in [0, 90), got {sel.level_deg}")
     if not 0.0 <= sel.palm_margin <= 0.05:
         raise ConfigError(f"{where}: selector.palm_margin must be in [0, 0.05] m, got {sel.palm_margin}")
+    if not 0.0 <= sel.min_bite <= 0.05:
+        raise ConfigError(f"{where}: selector.min_bite must be in [0, 0.05] m, got {sel.min_bite}")
     if sel.centre_range < 0:
         raise ConfigError(f"{where}: selector.centre_range must be ≥ 0, got {sel.centre_range}")
     if (sel.approach_search > 0 or sel.closing_search > 0) and not 0.0005 <= sel.search_step <= 0.05:

@@ -328,19 +328,41 @@ def test_a_failed_grasp_that_was_shifted_is_not_tried_again(points, ik):
     assert _select([_pose((0.3, 0.3, 0.02))], [0.06], points, ik).tried.shape == (0, 4, 4)  # nothing selected
 
 
-def test_the_search_does_not_pull_back_a_grasp_whose_palm_alone_is_in_the_way(points, ik):
-    # a shelf of points 5 mm above the palm's bottom face (tip + finger_length) when the grasp is pushed
-    # grasp_depth down, beside the box: the palm meets it, the fingers and the table are clear
-    tip = 0.02 - EXEC.grasp_depth
-    z = tip + GRIPPER.finger_length + 0.005
-    shelf = np.array([[x, y, z] for x in (-0.01, 0.0, 0.01) for y in (0.06, 0.07, 0.08)])
-    cloud = np.concatenate([points, shelf])
-    grasp = [_pose((0.0, 0.0, 0.02))]
-    no_search = replace(SEARCH, palm_margin=0.0, centre_range=0.0)
-    sel = _select(grasp, [0.06], cloud, ik, cfg=no_search)
-    assert sel.index is None and sel.rejected["collision"] == 1  # only moving up would clear the palm
-    pulled = _select(grasp, [0.06], cloud, ik, cfg=replace(no_search, palm_pullback=True))
-    assert pulled.index == 0 and pulled.grasp[2, 3] > tip + 0.004  # fingertips now higher on the box
-    # a grasp whose fingers reach too deep is still pulled back (test above), and one that is clear where
-    # it is is not moved
-    assert _select(grasp, [0.06], points, ik, cfg=no_search).grasp[2, 3] == pytest.approx(tip)
+def test_a_grasp_pulled_back_to_clear_the_palm_must_still_bite(points, ik):
+    # a shelf of points beside the box at a height the palm (bottom face at tip + finger_length) reaches
+    # when the grasp is pushed grasp_depth down: only pulling the grasp back clears it
+    def shelf_at(z):
+        return np.concatenate([points, [[x, y, z] for x in (-0.01, 0.0, 0.01) for y in (0.06, 0.07, 0.08)]])
+
+    grasp = [_pose((0.0, 0.0, 0.03))]
+    tip = 0.03 - EXEC.grasp_depth
+    cfg = replace(SEARCH, palm_margin=0.0, centre_range=0.0)
+    assert _select(grasp, [0.06], points, ik, cfg=cfg).grasp[2, 3] == pytest.approx(tip)  # no shelf: as meant
+    # 5 mm above the palm's bottom: pulled back 5 mm, the fingertips still 2.5 cm down the 5 cm box
+    low = shelf_at(tip + GRIPPER.finger_length + 0.005)
+    assert _select(grasp, [0.06], low, ik, cfg=replace(cfg, approach_search=0.0)).index is None
+    sel = _select(grasp, [0.06], low, ik, cfg=cfg)
+    assert sel.index == 0 and sel.grasp[2, 3] == pytest.approx(tip + 0.005)
+    # 2.2 cm above it: clearing it takes the fingertips to 5 mm below the box top, less than min_bite
+    high = shelf_at(tip + GRIPPER.finger_length + 0.022)
+    sel = _select(grasp, [0.06], high, ik, cfg=cfg)
+    assert sel.index is None and sel.rejected["collision"] == 1
+    sel = _select(grasp, [0.06], high, ik, cfg=replace(cfg, min_bite=0.0))
+    assert sel.index == 0 and sel.grasp[2, 3] == pytest.approx(HEIGHT - 0.005)
+
+
+def test_a_shallow_grasp_is_pushed_until_the_fingers_bite(points, ik):
+    # aimed 7 mm above the box top: pushed grasp_depth down, the fingertips close 3 mm below it
+    shallow = _pose((0.0, 0.0, HEIGHT + 0.007))
+    bare = replace(CFG, min_bite=0.0)
+    assert _select([shallow], [0.06], points, ik, cfg=bare).grasp[2, 3] == pytest.approx(HEIGHT - 0.003)
+    sel = _select([shallow], [0.06], points, ik)
+    assert sel.index is None and sel.rejected["enclosure"] == 1
+    # the search pushes it down in 5 mm steps until the box top is at least min_bite above the fingertips
+    sel = _select([shallow], [0.06], points, ik, cfg=SEARCH)
+    assert sel.index == 0 and sel.grasp[2, 3] == pytest.approx(HEIGHT - 0.013)
+    # a flat object cannot give a 1 cm bite: fingertips stopped by the table are enough (the cloud's table
+    # points lie outside the closing region, the box top 5 mm up is all there is)
+    flat = np.concatenate([points[:, :2], np.where(points[:, 2:] > 0, 0.005, 0.0)], axis=1)
+    sel = _select([_pose((0.0, 0.0, 0.003))], [0.06], flat, ik)
+    assert sel.index == 0 and sel.grasp[2, 3] == pytest.approx(CFG.table_clearance)

@@ -13,7 +13,10 @@ counted:
    (hidden behind an object) may be inside an unseen part of that object. Only the palm and wrist are
    checked: the fingers reach past the target into its own shadow by design, the palm stays above or
    behind it. Needs the depth image (``DepthView``); skipped without one;
-4. ``enclosure``: the closing region between the fingers holds at least ``enclosed_points`` observed points;
+4. ``enclosure``: the closing region between the fingers holds at least ``enclosed_points`` observed points,
+   and they reach at least ``min_bite`` up from the fingertips along the approach (the fingers take a real
+   bite of the object, not its top millimetres: a bowl's rim pinched 3 mm deep or a sphere held above its
+   equator slips on the lift), unless the table stops the fingertips first (a flat object is as deep as it is);
 5. ``ik``: IK reaches the pre-grasp and then the grasp within joint limits.
 
 Before these, ``repeat``: a candidate within ``retry_distance`` and ``retry_angle_deg`` (either symmetric
@@ -25,11 +28,9 @@ enough: the search below may have moved it by more than ``retry_distance`` from 
 Checks 2-4 are tried at the candidate's pose and, if it fails one, at poses shifted in its own frame along the
 approach (±``approach_search``) and the closing axis (±``closing_search``) in steps of ``search_step``, nearest
 shift first: a detector whose pose is right but whose distance to the camera is a centimetre or two off (a
-scale error) still yields the grasp it meant. The shifted pose is the one executed. Shifts that pull the grasp
-back (against its approach) are only tried when the candidate's own pose puts the fingers into the table or
-into observed points (it reaches too deep); when only the palm or wrist is in the way, or hidden, or nothing
-is enclosed, pulling back would leave the fingertips above the object's widest part, a grip that squeezes
-the object out or lets it slip (``palm_pullback`` = true tries them anyway).
+scale error) still yields the grasp it meant. The shifted pose is the one executed. The enclosure check's
+bite keeps the search honest: a grasp pulled back to clear the palm, or pushed just far enough to touch a
+rim, passes only if its fingers still reach ``min_bite`` down the object.
 
 Levelling (``level_deg`` > 0): before everything else, candidates approaching within
 ``level_deg`` of straight down are turned about their own y axis until their closing axis is horizontal
@@ -168,6 +169,22 @@ def _count_inside(points_g: np.ndarray, box: GripperBox, shifts: np.ndarray) -> 
     return np.count_nonzero(inside.all(axis=2), axis=1)
 
 
+def _enclosure(points_g: np.ndarray, region: GripperBox, shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For ``region`` (the closing region, fingertips at x = 0) moved by each grasp-frame shift (K, 3): how many
+    grasp-frame points lie inside (K,), and the bite (K,), m: how far the deepest of them lies behind the
+    fingertips along the approach, ``max(s_x − p_x)`` (0 when none)."""
+    lo, hi = region.centre - region.half + shifts.min(axis=0), region.centre + region.half + shifts.max(axis=0)
+    points_g = points_g[np.all((points_g > lo) & (points_g < hi), axis=1)]
+    rel = points_g[None] - shifts[:, None]
+    inside = np.all(np.abs(rel - region.centre) < region.half, axis=2)
+    bite = np.where(inside, -rel[..., 0], 0.0).max(axis=1, initial=0.0)
+    return np.count_nonzero(inside, axis=1), bite
+
+
+_AT_TABLE = 0.002
+"""Fingertips this close (m) above ``table_clearance`` count as stopped by the table (the bite check is waived)."""
+
+
 def _lowest_z(boxes: list[GripperBox], pose: np.ndarray) -> float:
     """World z of the lowest corner of ``boxes`` placed at ``pose``."""
     return float(min(box_corners(b, pose[None])[0, :, 2].min() for b in boxes))
@@ -209,28 +226,30 @@ def search_offsets(cfg: SelectorConfig) -> np.ndarray:
     return grid[np.lexsort((grid[:, 1], grid[:, 0], np.hypot(grid[:, 0], grid[:, 1])))]
 
 
-_CHECKS = (None, "collision", "occluded", "enclosure", "collision")
-"""The check each failure code names; code 4 is a collision of the palm or wrist alone (fingers and table clear)."""
+_CHECKS = (None, "collision", "occluded", "enclosure")
 
 
 def _failures(pose: np.ndarray, shifts: np.ndarray, width: float, local: np.ndarray, boxes: list[GripperBox],
               palm_samples: np.ndarray, view: DepthView | None, cfg: SelectorConfig) -> np.ndarray:
     """For ``pose`` moved by each grasp-frame shift (K, 3): the first gripper-prior check it fails, as an
-    index into ``_CHECKS`` (0 = passes all; 1 = the fingers hit the table or observed points, 4 = only the palm
-    or wrist hit observed points). ``local``: observed points in the grasp frame of ``pose``; ``boxes``: the
-    swept gripper boxes (fingers first); ``width``: the candidate's (closing region) width."""
+    index into ``_CHECKS`` (0 = passes all). ``local``: observed points in the grasp frame of ``pose``;
+    ``boxes``: the swept gripper boxes; ``width``: the candidate's (closing region) width."""
     R, t = pose[:3, :3], pose[:3, 3]
     low = _lowest_z(boxes, pose) + shifts @ R[2] < cfg.table_clearance - 1e-6
-    hits = [_count_inside(local, b, shifts) for b in boxes]
-    fingers = sum(h for h, b in zip(hits, boxes) if b.name.endswith("finger"))
-    code = np.where(low | (fingers >= cfg.collision_points), 1, np.where(sum(hits) >= cfg.collision_points, 4, 0))
+    hits = sum(_count_inside(local, b, shifts) for b in boxes)
+    code = np.where(low | (hits >= cfg.collision_points), 1, 0)
     todo = np.flatnonzero(code == 0)
     if view is not None and len(todo):
         world = (palm_samples[None] + shifts[todo, None]) @ R.T + t
         hidden = view.hidden(world.reshape(-1, 3), cfg.shadow_margin).reshape(len(todo), -1).any(axis=1)
         code[todo[hidden]] = 2
-    enclosed = _count_inside(local, GRIPPER.closing_region(width), shifts)
-    code[(code == 0) & (enclosed < cfg.enclosed_points)] = 3
+    enclosed, bite = _enclosure(local, GRIPPER.closing_region(width), shifts)
+    if cfg.min_bite > 0:
+        tips = _lowest_z([b for b in boxes if b.name.endswith("finger")], pose) + shifts @ R[2]
+        shallow = (bite < cfg.min_bite) & (tips > cfg.table_clearance + _AT_TABLE)
+    else:
+        shallow = np.zeros(len(shifts), dtype=bool)
+    code[(code == 0) & ((enclosed < cfg.enclosed_points) | shallow)] = 3
     return code
 
 
@@ -313,8 +332,6 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
         codes = _failures(poses[k], shifts[:1], *args)  # most candidates pass or fail where they are
         if codes[0] != 0 and len(shifts) > 1:
             codes = np.concatenate([codes, _failures(poses[k], shifts[1:], *args)])
-            if codes[0] != 1 and not cfg.palm_pullback:
-                codes[1:][offsets[1:, 0] < 0] = -1  # pulling back would only leave a shallower grip
         passing = np.flatnonzero(codes == 0)
         if len(passing) == 0:
             sel.rejected[_CHECKS[codes[0]]] += 1
