@@ -59,6 +59,13 @@ class GripperGeometry:
     """The arm's last link behind the flange (a capsule of this radius), as the selector sees it."""
     grip_force: float = 40.0
     """Force limit (N) of the closing servo; each finger pushes with half of it."""
+    grip_stiffness: float = 10000.0
+    """Closing servo gain (N per m of the half-opening tendon's error). The servo's force is
+    ``min(grip_stiffness · w / 2, grip_force)`` on an object of width ``w`` when commanded shut, so this gain
+    makes the force limit, not the object, set the squeeze for every ``w`` ≥ 8 mm (a real gripper's grasp
+    command; at 1000 N/m a 12 mm rim got 6 N and the jaws stalled on it)."""
+    grip_damping: float = 100.0
+    """Closing servo damping (N·s/m of tendon speed)."""
     open_margin: float = 0.01
     """How much wider than a grasp's width (m) the jaws open before the approach."""
 

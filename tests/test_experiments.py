@@ -50,7 +50,7 @@ def test_every_model_has_a_training_config_that_produces_its_weights():
         assert f"{cfg.train.out}/final.pt" in m.commands and f"--name {m.weights}" in m.commands
 
 
-def test_cache_is_reused_until_the_weights_change(fake_setup, tmp_path):
+def test_cache_is_reused_until_the_weights_or_the_labels_change(fake_setup, tmp_path, monkeypatch):
     data_dirs, weights = fake_setup
     calls = []
 
@@ -68,6 +68,10 @@ def test_cache_is_reused_until_the_weights_change(fake_setup, tmp_path):
     assert calls == ["kgnv2_multi"] * 3
     stored = json.loads((tmp_path / "cache" / "kgnv2_multi_on_multi.json").read_text())
     assert stored["key"]["views"] == 3 and stored["model"] == "kgnv2_multi"
+    # a change to the collision labelling (the ground truth is relabelled at evaluation) invalidates the cache
+    monkeypatch.setattr(ex, "LABEL_VERSION", ex.LABEL_VERSION + 1)
+    evaluate_cached(model, "multi", data_dirs, tmp_path / "cache", views=3, evaluator=evaluator)
+    assert calls == ["kgnv2_multi"] * 4
 
 
 def test_missing_weights_name_the_commands_that_make_them(fake_setup, tmp_path):

@@ -31,7 +31,7 @@ from kgn_bench.grasp import GraspSet
 from kgn_bench.progress import Progress
 from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_class, shape_from_dims
 from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics
-from kgn_bench.sim.collision import label_scene
+from kgn_bench.sim.collision import LABEL_VERSION, label_scene
 from kgn_bench.sim.placement import PlacementConfig, place_objects, rectify_axisymmetric, settle
 from kgn_bench.sim.render import RGBD, SceneRenderer
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
@@ -84,6 +84,7 @@ class GenerateConfig:
             "camera_distance_m": list(self.cameras.distance_range),
             "camera_elevation_deg": [float(np.rad2deg(a)) for a in self.cameras.elevation_range],
             "grasp_density": {"translations": self.density.translations, "angles": self.density.angles},
+            "label_version": LABEL_VERSION,
             "object_types": list(PRIMITIVES),
             "test_fraction": TEST_FRACTION,
         }

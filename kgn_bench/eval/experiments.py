@@ -5,8 +5,9 @@ config that produces them. A model trained on data ``X`` is called ``<variant>_<
 multi-object models keep the short weights names ``kgn`` and ``kgnv2``.
 
 Evaluations are cached: ``results/vision/<model>_on_<split data>.json`` (and ``.md``) holds the full
-``eval vision`` summary together with the SHA-256 of the weights and of the dataset's manifest and split files
-and the number of views; a table command reuses it when all three still match and evaluates otherwise.
+``eval vision`` summary together with the SHA-256 of the weights and of the dataset's manifest and split files,
+the number of views and the collision-labelling version (``sim.collision.LABEL_VERSION``: the ground truth is
+relabelled at evaluation time); a table command reuses it when all four still match and evaluates otherwise.
 
 Table I: GSR / GCR / OSR (%) at the three thresholds on the single-object and multi-object test splits for
 KGN and KGNv2 trained on either split. Table II (ablation): trained on single-object data, tested on
@@ -24,6 +25,7 @@ from pathlib import Path
 from kgn_bench.data.format import atomic_write_text
 from kgn_bench.detectors.kgn import WEIGHTS_DIR
 from kgn_bench.model.checkpoint import dataset_identity
+from kgn_bench.sim.collision import LABEL_VERSION
 
 __all__ = [
     "DATASETS",
@@ -183,7 +185,8 @@ def evaluate_cached(model: ModelSpec, test: str, data_dirs: DataDirs | None, cac
     """The vision summary of ``model`` on the ``test`` split's test views, from ``cache`` when the weights,
     the dataset and ``views`` are unchanged, else evaluated and written there (JSON + Markdown, atomically)."""
     weights, data = _require(model, test, data_dirs)
-    key = {"weights_sha256": _sha256(weights), "data_sha256": dataset_identity(data)["sha256"], "views": views}
+    key = {"weights_sha256": _sha256(weights), "data_sha256": dataset_identity(data)["sha256"], "views": views,
+           "labels": LABEL_VERSION}
     path = Path(cache) / f"{model.name}_on_{test}.json"
     if path.is_file() and not force:
         try:

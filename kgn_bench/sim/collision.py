@@ -16,7 +16,11 @@ from kgn_bench.grasp import GraspSet
 from kgn_bench.gripper import GRIPPER, GripperBox, GripperGeometry, box_corners
 from kgn_bench.sim.scene import Scene
 
-__all__ = ["body_collisions", "label_collisions", "proxy_hits_table"]
+__all__ = ["LABEL_VERSION", "body_collisions", "label_collisions", "proxy_hits_table"]
+
+LABEL_VERSION = 2
+"""Bumped whenever a change alters collision labels; evaluation caches key on it. 2: a proxy wider than its
+compiled size now reaches neighbours in its outer band (MuJoCo's midphase used the compiled box)."""
 
 
 def proxy_hits_table(poses: np.ndarray, widths: np.ndarray, gripper: GripperGeometry = GRIPPER) -> np.ndarray:

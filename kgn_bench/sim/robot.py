@@ -11,8 +11,9 @@ Frames (world = table-top centre, +z up):
 
 Gripper actuation follows the usual tendon scheme: a fixed tendon ``0.5·(q_left + q_right)`` (half the jaw
 opening), a joint equality keeping the fingers symmetric, and a force-limited position servo on the tendon
-(``GripperGeometry.grip_force``). Pads: condim 4, elliptic cones with impratio 10 (scene option), stiff
-solref/solimp and priority 1 so their contact parameters win (sim_facts §5).
+(``GripperGeometry.grip_force``; its gain ``grip_stiffness`` is high enough that the limit, not the object's
+width, sets the squeeze). Pads: condim 4, elliptic cones with impratio 10 (scene option), stiff solref/solimp
+and priority 1 so their contact parameters win (sim_facts §5).
 """
 
 from __future__ import annotations
@@ -105,7 +106,7 @@ def build_gripper(g: GripperGeometry = GRIPPER) -> mjcf.RootElement:
     tendon.add("joint", joint="right_finger", coef=0.5)
     root.equality.add("joint", joint1="left_finger", joint2="right_finger", solref=(0.005, 1.0),
                       solimp=(0.95, 0.99, 0.001))
-    root.actuator.add("position", name="gripper", tendon="opening", kp=1000.0, kv=30.0,
+    root.actuator.add("position", name="gripper", tendon="opening", kp=g.grip_stiffness, kv=g.grip_damping,
                       ctrlrange=(0.0, g.finger_travel), forcerange=(-g.grip_force, g.grip_force))
     return root
 
