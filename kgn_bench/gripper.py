@@ -31,6 +31,12 @@ class GripperBox:
     centre: np.ndarray
     half: np.ndarray
 
+    def swept(self, back: float) -> GripperBox:
+        """The volume this box covers moving from ``back`` m behind (along −x, against the approach) to its
+        place: the gripper's path on a straight approach from the pre-grasp."""
+        along = np.array([back / 2.0, 0.0, 0.0])
+        return GripperBox(self.name, self.centre - along, self.half + along)
+
 
 @dataclass(frozen=True)
 class GripperGeometry:

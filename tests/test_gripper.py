@@ -23,3 +23,11 @@ def test_opening_adds_the_margin_up_to_the_maximum():
     np.testing.assert_allclose(GRIPPER.opening(0.05), 0.05 + GRIPPER.open_margin)
     np.testing.assert_allclose(GRIPPER.opening(GRIPPER.max_width), GRIPPER.max_width)
     np.testing.assert_allclose(GRIPPER.opening(np.array([0.0, 0.195])), [GRIPPER.open_margin, GRIPPER.max_width])
+
+
+def test_a_swept_box_covers_the_path_from_the_pregrasp():
+    palm = GRIPPER.palm_box()
+    swept = palm.swept(0.1)
+    lo, hi = swept.centre - swept.half, swept.centre + swept.half
+    np.testing.assert_allclose(hi, palm.centre + palm.half)  # ends where the box ends at the grasp
+    np.testing.assert_allclose(lo, palm.centre - palm.half - [0.1, 0.0, 0.0])  # starts 10 cm back along −x

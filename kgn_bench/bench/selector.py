@@ -145,12 +145,6 @@ def score_candidates(confidences: np.ndarray, errors: np.ndarray, cfg: SelectorC
     return confidences - cfg.reprojection_weight * re
 
 
-def _swept(box: GripperBox, back: float) -> GripperBox:
-    """The volume a grasp-frame box sweeps moving from ``back`` m behind along −x to its place."""
-    half = box.half + np.array([back / 2.0, 0.0, 0.0])
-    return GripperBox(box.name, box.centre - np.array([back / 2.0, 0.0, 0.0]), half)
-
-
 def _grown(box: GripperBox, margin: float) -> GripperBox:
     """``box`` grown by ``margin`` (m) on every side."""
     return GripperBox(box.name, box.centre, box.half + margin)
@@ -161,24 +155,26 @@ def _union_bounds(boxes: list[GripperBox]) -> tuple[np.ndarray, np.ndarray]:
     return (np.min([b.centre - b.half for b in boxes], axis=0), np.max([b.centre + b.half for b in boxes], axis=0))
 
 
-def _count_inside(points_g: np.ndarray, box: GripperBox, shifts: np.ndarray) -> np.ndarray:
-    """(K,) how many grasp-frame points lie inside ``box`` moved by each grasp-frame shift (K, 3)."""
+def _inside(points_g: np.ndarray, box: GripperBox, shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Grasp-frame points relative to each shift, ``(K, M, 3)``, and whether each lies inside ``box`` moved by
+    that shift, ``(K, M)``; only the M points inside for some shift are kept."""
     lo, hi = box.centre - box.half + shifts.min(axis=0), box.centre + box.half + shifts.max(axis=0)
     points_g = points_g[np.all((points_g > lo) & (points_g < hi), axis=1)]  # inside for some shift
-    inside = np.abs(points_g[None] - shifts[:, None] - box.centre) < box.half
-    return np.count_nonzero(inside.all(axis=2), axis=1)
+    rel = points_g[None] - shifts[:, None]
+    return rel, np.all(np.abs(rel - box.centre) < box.half, axis=2)
+
+
+def _count_inside(points_g: np.ndarray, box: GripperBox, shifts: np.ndarray) -> np.ndarray:
+    """(K,) how many grasp-frame points lie inside ``box`` moved by each grasp-frame shift (K, 3)."""
+    return np.count_nonzero(_inside(points_g, box, shifts)[1], axis=1)
 
 
 def _enclosure(points_g: np.ndarray, region: GripperBox, shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For ``region`` (the closing region, fingertips at x = 0) moved by each grasp-frame shift (K, 3): how many
     grasp-frame points lie inside (K,), and the bite (K,), m: how far the deepest of them lies behind the
     fingertips along the approach, ``max(s_x − p_x)`` (0 when none)."""
-    lo, hi = region.centre - region.half + shifts.min(axis=0), region.centre + region.half + shifts.max(axis=0)
-    points_g = points_g[np.all((points_g > lo) & (points_g < hi), axis=1)]
-    rel = points_g[None] - shifts[:, None]
-    inside = np.all(np.abs(rel - region.centre) < region.half, axis=2)
-    bite = np.where(inside, -rel[..., 0], 0.0).max(axis=1, initial=0.0)
-    return np.count_nonzero(inside, axis=1), bite
+    rel, inside = _inside(points_g, region, shifts)
+    return np.count_nonzero(inside, axis=1), np.where(inside, -rel[..., 0], 0.0).max(axis=1, initial=0.0)
 
 
 _AT_TABLE = 0.002
@@ -304,7 +300,7 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
     order = np.argsort(-scores, kind="stable")[: cfg.max_candidates]
     back = execution.pregrasp_distance
     ready_closing = ik.tcp_pose(READY_Q)[:3, 2]
-    palm_samples = np.concatenate([_box_samples(_swept(b, back)) for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])
+    palm_samples = np.concatenate([_box_samples(b.swept(back)) for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])
     repeat = near_failed(poses, np.zeros((0, 4, 4)) if failed is None else failed, cfg.retry_distance,
                          np.deg2rad(cfg.retry_angle_deg))
     offsets = search_offsets(cfg)
@@ -320,7 +316,7 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
             sel.rejected["width"] += 1
             continue
         open_w = float(GRIPPER.opening(w))
-        boxes = [_swept(_grown(b, cfg.palm_margin) if b.name in ("palm", "wrist") else b, back)
+        boxes = [(_grown(b, cfg.palm_margin) if b.name in ("palm", "wrist") else b).swept(back)
                  for b in GRIPPER.boxes(open_w)]
         R = poses[k][:3, :3]
         local0 = (points - poses[k][:3, 3]) @ R  # observed points in the candidate's grasp frame

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from kgn_bench.grasp import GraspSet
-from kgn_bench.gripper import GRIPPER, GripperBox, GripperGeometry, box_corners
+from kgn_bench.gripper import GRIPPER, GripperGeometry, box_corners
 from kgn_bench.sim.scene import Scene
 
 __all__ = ["LABEL_VERSION", "body_collisions", "label_collisions", "proxy_hits_table"]
@@ -59,11 +59,6 @@ def label_scene(scene: Scene, density) -> list[GraspSet]:
     return out
 
 
-def _swept_box(box: GripperBox, back: float) -> GripperBox:
-    """The grasp-frame volume ``box`` covers moving from ``back`` m behind (along −x) to its place."""
-    return GripperBox(box.name, box.centre - np.array([back / 2.0, 0.0, 0.0]), box.half + np.array([back / 2.0, 0, 0]))
-
-
 def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: GripperGeometry = GRIPPER) -> np.ndarray:
     """(N,) bool: the palm or wrist of world grasps ``poses`` (N, 4, 4), swept along the straight approach
     from ``back`` m behind the grasp, penetrates the table top (z < 0) or any object, the grasped one included.
@@ -73,7 +68,7 @@ def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: Gripp
     tests cover the whole gripper's approach (the fingers' swept path behind ``−proxy_depth`` lies inside
     the swept palm). Exact scene geometry, so privileged: the oracle's, never a detector's.
     """
-    boxes = [_swept_box(b, back) for b in (gripper.palm_box(), gripper.wrist_box())]
+    boxes = [b.swept(back) for b in (gripper.palm_box(), gripper.wrist_box())]
     hits = np.zeros(len(poses), dtype=bool)
     for box in boxes:
         hits |= box_corners(box, poses)[..., 2].min(axis=1) < 0.0

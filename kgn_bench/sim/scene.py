@@ -170,8 +170,8 @@ class Scene:
         self.geom_label = body_to_label[m.geom_bodyid]
         self.camera_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "camera")
         self.proxy_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "proxy")
-        self.proxy_mocap = m.body_mocapid[m.geom_bodyid[self.proxy_geom]]
         proxy_body = m.geom_bodyid[self.proxy_geom]
+        self.proxy_mocap = m.body_mocapid[proxy_body]
         assert m.body_bvhnum[proxy_body] == 1, "the proxy body holds exactly one geom"
         self._proxy_bvh = int(m.body_bvhadr[proxy_body])
         self.table_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "table")
