@@ -1,10 +1,11 @@
-# Set-up and entry points. Everything installs into .venv from pyproject.toml + constraints.txt.
+# Set-up and entry points. Everything installs into .venv from pyproject.toml, pinned by the lock file
+# constraints.txt (every package at the version that produced results/).
 PYTHON ?= python3
 VENV   ?= .venv
 BIN     = $(VENV)/bin
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo benchmark test regression perf clean
+.PHONY: setup demo benchmark test regression perf wheel-check lock clean
 
 $(BIN)/kgn-bench: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -37,9 +38,26 @@ regression: setup
 	    > /dev/null && $(BIN)/kgn-bench check runs/ci_regression_$$d --baseline results/ci_baseline.json || exit 1; \
 	done
 
+# Build the wheel, install it into a separate venv and run one oracle and one kgnv2 trial from a folder
+# outside the clone (what `pip install .` gives a user; .ci/run calls it).
+wheel-check:
+	bash .ci/wheel_check
+
+# Refresh the lock file: a new venv from pyproject.toml's ranges (torch kept at the CPU 2.13.0 build), then
+# pip freeze. Afterwards run `make benchmark` and re-measure results/ if a figure moved.
+lock:
+	rm -rf .lock-venv
+	$(PYTHON) -m venv .lock-venv
+	.lock-venv/bin/pip install --upgrade pip
+	.lock-venv/bin/pip install 'torch==2.13.0' -e '.[test]'
+	{ sed -n '/^#/p' constraints.txt; .lock-venv/bin/pip freeze --exclude-editable | grep -v '^#' \
+	  | sed 's/^torch==2.13.0+cpu$$/torch==2.13.0/'; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt
+	rm -rf .lock-venv
+
 perf: setup
 	$(BIN)/kgn-bench perf data --scenes 40 --workers 2
 	$(BIN)/kgn-bench perf run tasks/single_object.toml --trials 5 --workers 2
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+	rm -rf $(VENV) runs .pytest_cache build dist

@@ -6,6 +6,7 @@ Errors in arguments or inputs print one line ``kgn-bench: error: ...`` and exit 
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from pathlib import Path
 
@@ -38,17 +39,46 @@ def _fail(message: str) -> int:
     return 2
 
 
+def _warn(message: str) -> None:
+    sys.stderr.write(f"kgn-bench: warning: {message}\n")
+
+
+def _check_workers(workers: int) -> None:
+    """Warn when more worker processes are asked for than there are cores (they would only queue)."""
+    from kgn_bench.threads import available_cores
+
+    cores = available_cores()
+    if workers > cores:
+        _warn(f"--workers {workers} is more than the {cores} core(s) of this machine; trials will queue "
+              f"and run slower than with --workers {cores}")
+
+
+def _writable(path: Path | None, what: str = "output folder") -> None:
+    if path is not None:
+        from kgn_bench.io import check_writable_dir
+
+        check_writable_dir(path, what)
+
+
+def _writable_file(path: Path, what: str) -> None:
+    """Check before any work that ``path`` can be written as a file (its folder exists or can be made)."""
+    from kgn_bench.errors import OutputError
+
+    if path.is_dir():
+        raise OutputError(f"{what} {path} is a folder, not a file")
+    _writable(path.parent if str(path.parent) else Path("."), f"folder of {what}")
+
+
 def _cmd_data_generate(args) -> int:
-    from kgn_bench.data.format import DatasetError
     from kgn_bench.data.generate import GenerateConfig, generate_dataset
     from kgn_bench.sim.scene import PhysicsError
 
+    _check_workers(args.workers)
+    _writable(args.out)
     config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed)
     try:
         stats = generate_dataset(config, args.out, workers=args.workers, overwrite=args.overwrite,
                                  progress=not args.quiet)
-    except DatasetError as e:
-        return _fail(str(e))
     except PhysicsError as e:
         return _fail(f"{e}; finished scenes are kept, rerun the same command to resume")
     done = config.scenes - stats.scenes
@@ -61,15 +91,11 @@ def _cmd_data_generate(args) -> int:
 
 
 def _cmd_data_show(args) -> int:
-    from kgn_bench.data.format import DatasetError
     from kgn_bench.viz.draw import show_view
     from kgn_bench.viz.plot import save_png
 
-    try:
-        image = show_view(args.dir, args.scene, args.view, box=args.box)
-    except (DatasetError, ValueError) as e:
-        return _fail(str(e))
-    save_png(args.out, image)
+    _writable_file(args.out, "image")
+    save_png(args.out, show_view(args.dir, args.scene, args.view, box=args.box))
     print(f"wrote {args.out}")
     return 0
 
@@ -94,20 +120,18 @@ def _apply_settings(task, settings: list[str] | None):
 
 
 def _cmd_run(args) -> int:
-    from kgn_bench.bench.runner import RunError, run_benchmark
-    from kgn_bench.config import ConfigError, load_task, validate
-
-    try:
-        task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
-        validate(task, str(args.task))
-        task = _apply_settings(task, args.set)
-        out = args.out or Path("runs") / f"{task.name}_{args.detector.replace(':', '.')}_seed{task.seed}"
-        result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
-                               progress=not args.quiet)
-    except (ConfigError, RunError, ValueError) as e:
-        return _fail(str(e))
+    from kgn_bench.bench.runner import run_benchmark
     from kgn_bench.bench.stats import summary_markdown
+    from kgn_bench.config import load_task, validate
 
+    task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
+    validate(task, str(args.task))
+    task = _apply_settings(task, args.set)
+    out = args.out or Path("runs") / f"{task.name}_{args.detector.replace(':', '.')}_seed{task.seed}"
+    _check_workers(args.workers)
+    _writable(out, "run folder")
+    result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
+                           progress=not args.quiet)
     print(summary_markdown(result.summary))
     t = result.timing
     if result.ran:
@@ -118,36 +142,43 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from kgn_bench.bench.runner import RunError
     from kgn_bench.bench.sweep import run_sweep, sweep_markdown
-    from kgn_bench.config import ConfigError, load_task, validate
+    from kgn_bench.config import load_task, validate
 
-    try:
-        task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
-        validate(task, str(args.task))
-        out = args.out or Path("runs") / f"sweep_{task.name}_{args.detector}_{args.param}"
-        points = run_sweep(task, args.detector, args.param, args.values, out, workers=args.workers,
-                           progress=not args.quiet)
-    except (ConfigError, RunError, ValueError) as e:
-        return _fail(str(e))
+    task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
+    validate(task, str(args.task))
+    out = args.out or Path("runs") / f"sweep_{task.name}_{args.detector}_{args.param}"
+    _check_workers(args.workers)
+    _writable(out, "sweep folder")
+    points = run_sweep(task, args.detector, args.param, args.values, out, workers=args.workers,
+                       progress=not args.quiet)
     print(sweep_markdown(task, args.detector, args.param, points))
     print(f"wrote {out}/sweep.json, sweep.md and one run folder per value")
     return 0
 
 
-def _cmd_report(args) -> int:
-    from kgn_bench.bench.report import ReportError, build_report, load_summaries
-
+def _run_folders(paths: list[Path]) -> list[Path]:
     folders = []
-    for path in args.runs:  # a run folder, or a folder of run folders (e.g. runs/benchmark)
+    for path in paths:  # a run folder, or a folder of run folders (e.g. runs/benchmark)
         found = [path] if (path / "summary.json").is_file() else sorted(p.parent for p in path.rglob("summary.json"))
         folders += found or [path]
-    try:
-        text, _ = build_report(load_summaries(folders), args.out)
-    except ReportError as e:
-        return _fail(str(e))
+    return folders
+
+
+def _print_report(text: str, warnings: list[str], out: Path) -> None:
     print(text)
-    print(f"wrote {args.out}/benchmark.md, benchmark.json, benchmark.png")
+    for w in warnings:
+        _warn(w)
+    print(f"wrote {out}/benchmark.md, benchmark.json, benchmark.png")
+
+
+def _cmd_report(args) -> int:
+    from kgn_bench.bench.report import build_report, environment_warnings, load_summaries
+
+    _writable(args.out, "report folder")
+    summaries = load_summaries(_run_folders(args.runs))
+    text, _ = build_report(summaries, args.out)
+    _print_report(text, environment_warnings(summaries), args.out)
     return 0
 
 
@@ -155,60 +186,48 @@ def _cmd_benchmark(args) -> int:
     from dataclasses import replace
 
     from kgn_bench.bench.benchmark import load_plan, run_plan
-    from kgn_bench.bench.report import ReportError, build_report, load_summaries
-    from kgn_bench.bench.runner import RunError
-    from kgn_bench.config import ConfigError
+    from kgn_bench.bench.report import build_report, environment_warnings, load_summaries
 
-    try:
-        plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
-        plan = replace(plan, tasks=tuple(_apply_settings(t, args.set) for t in plan.tasks))
-        folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet)
-        text, _ = build_report(load_summaries(folders), args.out or args.runs)
-    except (ConfigError, RunError, ReportError, ValueError) as e:
-        return _fail(str(e))
-    print(text)
-    print(f"wrote {args.out or args.runs}/benchmark.md, benchmark.json, benchmark.png")
+    plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
+    plan = replace(plan, tasks=tuple(_apply_settings(t, args.set) for t in plan.tasks))
+    _check_workers(args.workers)
+    _writable(args.runs, "runs folder")
+    _writable(args.out, "report folder")
+    folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet)
+    summaries = load_summaries(folders)
+    text, _ = build_report(summaries, args.out or args.runs)
+    _print_report(text, environment_warnings(summaries), args.out or args.runs)
     return 0
 
 
 def _cmd_check(args) -> int:
-    import json
+    from kgn_bench.bench.check import baseline_for, compare, format_check, read_baseline, read_summary, write_baseline
 
-    from kgn_bench.bench.check import baseline_for, compare, format_check, write_baseline
-
-    summary_path = args.run / "summary.json"
-    if not summary_path.is_file():
-        return _fail(f"{summary_path} not found: run the benchmark first")
-    try:
-        summary = json.loads(summary_path.read_text())
-    except json.JSONDecodeError:
-        return _fail(f"{summary_path} is not valid JSON")
+    summary = read_summary(args.run)
     if args.update_baseline:
+        _writable_file(args.baseline, "baseline")
         write_baseline(summary, args.baseline)
         print(f"wrote baseline {args.baseline}")
         return 0
-    if not args.baseline.is_file():
-        return _fail(f"baseline {args.baseline} not found (write one with --update-baseline)")
-    try:
-        baseline = baseline_for(json.loads(args.baseline.read_text()), summary.get("detector", ""))
-        rows = compare(summary, baseline)
-    except (json.JSONDecodeError, KeyError, ValueError) as e:
-        return _fail(f"baseline {args.baseline} unusable: {e}")
+    baseline = baseline_for(read_baseline(args.baseline), summary["detector"], args.baseline)
+    rows = compare(summary, baseline)
     print(format_check(rows, summary, baseline))
     return 1 if any(r.regressed for r in rows) else 0
 
 
 def _cmd_replay(args) -> int:
-    import shutil
-
-    from kgn_bench.viz.recording import open_viewer
+    from kgn_bench.viz.recording import RecordingError, copy_recording, open_viewer, serve_web
 
     path = args.run / "recording.rrd" if args.run.is_dir() else args.run
     if not path.is_file():
-        return _fail(f"{path} not found: run with --record first")
+        raise RecordingError(f"{path} not found: run with --record first")
     if args.save:
-        shutil.copyfile(path, args.save)
+        _writable_file(args.save, "recording copy")
+        copy_recording(path, args.save)
         print(f"wrote {args.save}")
+        return 0
+    if args.web:
+        serve_web(path, port=args.port)
         return 0
     open_viewer(path)
     return 0
@@ -222,35 +241,26 @@ def _cmd_perf_run(args) -> int:
 
 
 def _cmd_train(args) -> int:
-    from kgn_bench.data.format import DatasetError
-    from kgn_bench.model.checkpoint import CheckpointError
-    from kgn_bench.model.train import TrainConfigError, load_train_config, train
+    from kgn_bench.model.train import load_train_config, train
 
-    try:
-        cfg = load_train_config(args.config)
-        final = train(cfg, progress=not args.quiet, device=args.device)
-    except (TrainConfigError, CheckpointError, DatasetError, FloatingPointError) as e:
-        return _fail(str(e))
-    print(f"wrote {final}")
+    cfg = load_train_config(args.config)
+    _writable(Path(cfg.train.out), "training run folder")
+    print(f"wrote {train(cfg, progress=not args.quiet, device=args.device, threads=args.threads)}")
     return 0
 
 
 def _cmd_eval_vision(args) -> int:
     import json
 
-    from kgn_bench.data.format import DatasetError, atomic_write_text
-    from kgn_bench.detectors import DetectorError
     from kgn_bench.detectors.kgn import KGNDetector
     from kgn_bench.eval.vision import evaluate_dataset
-    from kgn_bench.model.checkpoint import CheckpointError
+    from kgn_bench.io import atomic_write_text
 
-    try:
-        detector = KGNDetector(args.variant, args.weights)
-        metrics = evaluate_dataset(detector, args.data, split=args.split, views=args.views, progress=not args.quiet)
-    except (CheckpointError, DatasetError, DetectorError, ValueError) as e:
-        return _fail(str(e))
+    _writable(args.out)
+    detector = KGNDetector(args.variant, args.weights)
+    metrics = evaluate_dataset(detector, args.data, split=args.split, views=args.views, progress=not args.quiet)
     summary = metrics.summarise()
-    summary.update({"variant": args.variant, "weights": str(args.weights), "data": str(args.data),
+    summary.update({"variant": detector.name, "weights": str(args.weights), "data": str(args.data),
                     "split": args.split})
     text = metrics.to_markdown()
     print(text)
@@ -263,43 +273,29 @@ def _cmd_eval_vision(args) -> int:
 
 
 def _cmd_perf_detector(args) -> int:
-    from kgn_bench.data.format import DatasetError
-    from kgn_bench.model.checkpoint import CheckpointError
     from kgn_bench.perf import perf_detector
 
-    try:
-        print(perf_detector(args.variant, args.weights, frames=args.frames, threads=args.threads, data=args.data))
-    except (CheckpointError, DatasetError, ValueError) as e:
-        return _fail(str(e))
+    print(perf_detector(args.variant, args.weights, frames=args.frames, threads=args.threads, data=args.data))
     return 0
 
 
 def _cmd_eval_show(args) -> int:
-    from kgn_bench.data.format import DatasetError
-    from kgn_bench.detectors import DetectorError
     from kgn_bench.detectors.kgn import KGNDetector
-    from kgn_bench.model.checkpoint import CheckpointError
     from kgn_bench.viz.draw import show_predictions
     from kgn_bench.viz.plot import save_png
 
-    try:
-        detector = KGNDetector(args.variant, args.weights)
-        img = show_predictions(detector, args.data, args.scene, args.view)
-    except (CheckpointError, DatasetError, DetectorError, ValueError) as e:
-        return _fail(str(e))
-    save_png(args.out, img)
+    _writable_file(args.out, "image")
+    detector = KGNDetector(args.variant, args.weights)
+    save_png(args.out, show_predictions(detector, args.data, args.scene, args.view))
     print(f"wrote {args.out}")
     return 0
 
 
 def _cmd_export(args) -> int:
-    from kgn_bench.detectors.kgn import WEIGHTS_DIR
-    from kgn_bench.model.checkpoint import CheckpointError, export_weights
+    from kgn_bench.model.checkpoint import export_weights
 
-    try:
-        weights, card = export_weights(args.checkpoint, args.name, args.out or WEIGHTS_DIR)
-    except CheckpointError as e:
-        return _fail(str(e))
+    _writable(args.out, "weights folder")
+    weights, card = export_weights(args.checkpoint, args.name, args.out)
     print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
     return 0
 
@@ -307,10 +303,8 @@ def _cmd_export(args) -> int:
 def _cmd_study_pnp_noise(args) -> int:
     from kgn_bench.eval.pnp_noise import PnpNoiseConfig, run_pnp_noise, write_pnp_noise
 
-    try:
-        config = PnpNoiseConfig(samples=args.samples, seed=args.seed, sigmas=tuple(args.sigmas))
-    except ValueError as e:
-        return _fail(str(e))
+    config = PnpNoiseConfig(samples=args.samples, seed=args.seed, sigmas=tuple(args.sigmas))
+    _writable(args.out.parent if str(args.out.parent) else Path("."), "study folder")
     rows = run_pnp_noise(config)
     print(f"{'box':<17} {'sigma':>5} {'d (m)':>6} {'rot mean':>9} {'rot med':>8} {'t mean':>8} {'t med':>7}  (deg, cm)")
     for r in rows:
@@ -322,17 +316,12 @@ def _cmd_study_pnp_noise(args) -> int:
 
 
 def _cmd_experiment(args) -> int:
-    from kgn_bench.data.format import DatasetError
-    from kgn_bench.detectors import DetectorError
-    from kgn_bench.eval.experiments import ExperimentError, build_table1, build_table2
-    from kgn_bench.model.checkpoint import CheckpointError
+    from kgn_bench.eval.experiments import build_table1, build_table2
 
     build = {"table1": build_table1, "table2": build_table2}[args.table]
     data_dirs = {"single": args.single, "multi": args.multi}
-    try:
-        text, _ = build(data_dirs, args.out, views=args.views, partial=args.partial, force=args.force)
-    except (ExperimentError, CheckpointError, DatasetError, DetectorError, ValueError) as e:
-        return _fail(str(e))
+    _writable(args.out, "results folder")
+    text, _ = build(data_dirs, args.out, views=args.views, partial=args.partial, force=args.force)
     print(text)
     print(f"wrote {args.out}/vision_{args.table}.md, .json (per-model evaluations in {args.out}/vision/)")
     return 0
@@ -374,7 +363,7 @@ def build_parser() -> argparse.ArgumentParser:
     pdata.add_argument("--mode", choices=("single", "multi"), default="multi")
     pdata.set_defaults(func=_cmd_perf_data)
     prun = psub.add_parser("run", help="benchmark trials/min and the split (render, detect, select, simulate)")
-    prun.add_argument("task", type=Path)
+    prun.add_argument("task", type=Path, help="task file, or a bundled task's name")
     prun.add_argument("--detector", default="oracle")
     prun.add_argument("--trials", type=_int_at_least(1), default=2, help="trials per object (default 2)")
     prun.add_argument("--workers", type=_int_at_least(1), default=2)
@@ -389,10 +378,12 @@ def build_parser() -> argparse.ArgumentParser:
     pdet.set_defaults(func=_cmd_perf_detector)
 
     run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)")
-    run.add_argument("task", type=Path, help="task file (tasks/*.toml)")
+    run.add_argument("task", type=Path, help="task file, or a bundled task's name (single_object, ...)")
     run.add_argument("--detector", required=True,
                      help="kgnv2, kgn, kgn_depth, antipodal, random, oracle, ... or module:attribute for your own")
-    run.add_argument("--trials", type=_int_at_least(1), help="override the task's trial count")
+    run.add_argument("--trials", type=_int_at_least(1),
+                     help="override the task's [task] trials: per object for single_object tasks (6 objects x "
+                          "N trials), scenes for multi_object tasks")
     run.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
     run.add_argument("--workers", type=_int_at_least(1), default=1)
     run.add_argument("--record", action="store_true", help="write a rerun recording (recording.rrd)")
@@ -403,11 +394,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=_cmd_run)
 
     sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)")
-    sw.add_argument("task", type=Path, help="task file (tasks/*.toml)")
+    sw.add_argument("task", type=Path, help="task file, or a bundled task's name")
     sw.add_argument("--detector", required=True)
     sw.add_argument("--param", required=True, help="setting to sweep, e.g. camera.depth_noise")
     sw.add_argument("--values", nargs="+", required=True, help="values, e.g. 0 0.5 1 2")
-    sw.add_argument("--trials", type=_int_at_least(1), help="override the task's trial count")
+    sw.add_argument("--trials", type=_int_at_least(1),
+                    help="override the task's [task] trials (per object for single_object, scenes for multi_object)")
     sw.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
     sw.add_argument("--workers", type=_int_at_least(1), default=1)
     sw.add_argument("--out", type=Path, help="sweep folder (default runs/sweep_<task>_<detector>_<param>)")
@@ -415,8 +407,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.set_defaults(func=_cmd_sweep)
 
     bm = sub.add_parser("benchmark", help="run every task x detector of a plan, then write the report")
-    bm.add_argument("plan", type=Path, nargs="?", default=Path("tasks/benchmark.toml"),
-                    help="plan file (default tasks/benchmark.toml)")
+    bm.add_argument("plan", type=Path, nargs="?", default=Path("benchmark"),
+                    help="plan file, or a bundled plan's name (default: the bundled benchmark plan)")
     bm.add_argument("--tasks", nargs="+", help="only these tasks of the plan")
     bm.add_argument("--detectors", nargs="+", help="only these detectors of the plan")
     bm.add_argument("--workers", type=_int_at_least(1), default=2)
@@ -438,28 +430,36 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--update-baseline", action="store_true", help="write the run's rates as the baseline")
     check.set_defaults(func=_cmd_check)
 
-    replay = sub.add_parser("replay", help="open a run's rerun recording (or save a copy)")
+    replay = sub.add_parser("replay", help="open a run's rerun recording, serve it to a browser, or save a copy")
     replay.add_argument("run", type=Path, help="run folder or .rrd file")
     replay.add_argument("--save", type=Path, help="copy the recording here instead of opening the viewer")
+    replay.add_argument("--web", action="store_true",
+                        help="serve the recording and rerun's web viewer on localhost (for a headless server: "
+                             "open the printed URL, e.g. through SSH port forwarding); Ctrl-C stops it")
+    replay.add_argument("--port", type=_int_at_least(1), default=9090,
+                        help="web viewer port (default 9090; the recording is served on the next port)")
     replay.set_defaults(func=_cmd_replay)
 
     tr = sub.add_parser("train", help="train a KGN / KGNv2 model from a config (resumes an interrupted run)")
-    tr.add_argument("config", type=Path, help="training config (tasks/train_*.toml)")
+    tr.add_argument("config", type=Path, help="training config (tasks/train_*.toml, or its bundled name)")
     tr.add_argument("--device", help="torch device (default: cuda when present, else cpu)")
+    tr.add_argument("--threads", type=_int_at_least(1), help="CPU threads for torch (default: all cores)")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
     tr.set_defaults(func=_cmd_train)
 
     ex = sub.add_parser("export", help="ship a trained checkpoint as weights with a model card")
     ex.add_argument("checkpoint", type=Path, help="a training run's final.pt (or last.pt)")
     ex.add_argument("--name", required=True, help="weights name (kgnv2, kgn, ...)")
-    ex.add_argument("--out", type=Path, help="folder (default assets/weights)")
+    ex.add_argument("--out", type=Path, default=Path("assets/weights"),
+                    help="folder (default assets/weights: the shipped weights, run from the repository)")
     ex.set_defaults(func=_cmd_export)
 
     ev = sub.add_parser("eval", help="evaluate detectors")
     esub = ev.add_subparsers(dest="eval_command", required=True, parser_class=_Parser)
     vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split")
     vis.add_argument("--weights", required=True, help="weights file, or a name under assets/weights")
-    vis.add_argument("--variant", default="kgnv2", help="decoding variant (kgnv2, kgnv2_sbranch, kgn, kgn_depth)")
+    vis.add_argument("--variant", help="decoding variant (kgnv2, kgnv2_sbranch, kgn, kgn_depth; default: the "
+                                       "variant the weights were trained as)")
     vis.add_argument("--data", type=Path, required=True, help="dataset folder")
     vis.add_argument("--split", default="test", choices=("train", "test"))
     vis.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
@@ -468,7 +468,7 @@ def build_parser() -> argparse.ArgumentParser:
     vis.set_defaults(func=_cmd_eval_vision)
     shw = esub.add_parser("show", help="draw a detector's keypoint boxes beside the ground truth of one view")
     shw.add_argument("--weights", required=True, help="weights file, or a name under assets/weights")
-    shw.add_argument("--variant", default="kgnv2")
+    shw.add_argument("--variant", help="decoding variant (default: the one the weights were trained as)")
     shw.add_argument("--data", type=Path, required=True)
     shw.add_argument("--scene", type=_int_at_least(0), required=True)
     shw.add_argument("--view", type=_int_at_least(0), default=0)
@@ -498,12 +498,24 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command. Every error a user can cause ends here as one line and exit status 2: the project's
+    own (``KGNBenchError``), the operating system's (``OSError``: a path that cannot be read or written, a
+    full disk) and bad argument values (``ValueError``). Status 1 is kept for ``check``'s regression."""
+    from kgn_bench.errors import KGNBenchError
+
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         sys.stderr.write("kgn-bench: interrupted\n")
         return 130
+    except KGNBenchError as e:
+        return _fail(str(e).splitlines()[0] if str(e) else type(e).__name__)
+    except OSError as e:
+        reason = "disk full" if e.errno == errno.ENOSPC else (e.strerror or type(e).__name__)
+        return _fail(f"{e.filename}: {reason}" if e.filename else reason)
+    except ValueError as e:
+        return _fail(str(e).splitlines()[0])
 
 
 if __name__ == "__main__":

@@ -13,16 +13,17 @@ from typing import Any
 
 import tomllib
 
+from kgn_bench.errors import KGNBenchError
 from kgn_bench.shapes import OBJECTS, PRIMITIVES
 
 __all__ = ["PROTOCOLS", "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig",
-           "apply_override", "load_task", "read_toml"]
+           "apply_override", "load_task", "read_toml", "resolve_task"]
 
 PROTOCOLS = ("single_object", "multi_object")
 SCORES = ("confidence_minus_error", "paper_literal")
 
 
-class ConfigError(ValueError):
+class ConfigError(KGNBenchError, ValueError):
     """A task file that cannot be used; the message names the file and the key."""
 
 
@@ -172,9 +173,26 @@ def read_toml(path: Path, what: str, error: type[Exception] = ConfigError) -> di
         raise error(f"{path}: not valid TOML ({e})") from None
 
 
+def resolve_task(name_or_path: str | Path) -> Path:
+    """The TOML file a command line names: an existing path, else the bundled task or plan of that name
+    (``single_object`` for the shipped ``tasks/single_object.toml``; a trailing ``.toml`` and a leading
+    ``tasks/`` are allowed). ``ConfigError`` lists the bundled names otherwise."""
+    from kgn_bench.resources import bundled_tasks
+
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    bundled = bundled_tasks()
+    key = path.name[:-5] if path.name.endswith(".toml") else path.name
+    if path.parent in (Path("."), Path("tasks")) and key in bundled:
+        return bundled[key]
+    raise ConfigError(f"{name_or_path}: no such task file and no bundled task of that name "
+                      f"(bundled: {', '.join(bundled)})")
+
+
 def load_task(path: str | Path) -> TaskConfig:
-    """Read and validate a task file."""
-    path = Path(path)
+    """Read and validate a task file, named by its path or by its bundled name (``resolve_task``)."""
+    path = resolve_task(path)
     raw = read_toml(path, "task file")
     sections = {"task", "objects", "camera", "selector", "execution"}
     for name, value in raw.items():

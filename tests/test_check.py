@@ -135,7 +135,15 @@ def test_cli_check_bad_inputs(tmp_path, capsys):
     run = _run_dir(tmp_path, _summary(5, 6))
     baseline.write_text("{not json")
     assert main(["check", str(run), "--baseline", str(baseline)]) == 2
-    assert "unusable" in capsys.readouterr().err
+    assert "is not valid JSON" in capsys.readouterr().err
+    assert main(["check", str(run), "--baseline", str(baseline), "--update-baseline"]) == 2  # not replaced
+    assert "is not valid JSON" in capsys.readouterr().err and baseline.read_text() == "{not json"
+    for wrong in ([1, 2], {"baselines": [1]}, {"baselines": {"kgnv2": {"rates": {"success": {"k": "x"}}}}},
+                  {"rates": {}}, {"rates": {"success": {"k": 3, "n": 2}}}):
+        baseline.write_text(json.dumps(wrong))
+        assert main(["check", str(run), "--baseline", str(baseline)]) == 2  # 1 is kept for a regression
+        err = capsys.readouterr().err
+        assert err.startswith(f"kgn-bench: error: baseline {baseline}") and err.count("\n") == 1
     baseline.write_text(json.dumps({"rates": {"clear": Rate(1, 2).to_dict()}}))
     assert main(["check", str(run), "--baseline", str(baseline)]) == 2
     assert "share no rate" in capsys.readouterr().err

@@ -57,3 +57,33 @@ def test_weights_that_do_not_fit_the_network(tmp_path, small_model):
     small_model(tmp_path / "w.pt", variant="kgn", label="kgnv2")  # no scale head, labelled kgnv2
     with pytest.raises(CheckpointError, match="weights do not fit the network"):
         load_model(tmp_path / "w.pt")
+
+
+def test_weights_are_checked_against_their_model_card(tmp_path, small_model):
+    from kgn_bench.model.checkpoint import card_sha256, export_weights
+
+    small_model(tmp_path / "final.pt", epoch=1, history=[])
+    weights, card = export_weights(tmp_path / "final.pt", "mine", tmp_path / "w")
+    assert card_sha256(weights) is not None and len(card_sha256(weights)) == 64
+    load_checkpoint(weights)
+    data = bytearray(weights.read_bytes())
+    start = len(data) // 2
+    data[start : start + 4096] = bytes(b ^ 0xFF for b in data[start : start + 4096])  # same size, 4 KB flipped
+    weights.write_bytes(bytes(data))
+    with pytest.raises(CheckpointError, match=r"SHA-256 differs from its model card mine\.md"):
+        load_checkpoint(weights)
+    card.unlink()  # without a card (a training run's checkpoint) there is no hash to check
+    try:
+        load_model(weights)
+    except CheckpointError as e:
+        assert "SHA-256" not in str(e)
+
+
+def test_every_shipped_weights_file_matches_its_card():
+    from kgn_bench.model.checkpoint import card_sha256, file_sha256
+    from kgn_bench.resources import weights_dir
+
+    shipped = sorted(weights_dir().glob("*.pt"))
+    assert shipped
+    for w in shipped:
+        assert card_sha256(w) == file_sha256(w), w.name

@@ -6,7 +6,6 @@ import pytest
 from kgn_bench.data.format import (
     DatasetError,
     SceneAnnotation,
-    atomic_write_text,
     decode_depth,
     encode_depth,
     read_split,
@@ -51,10 +50,3 @@ def test_malformed_annotations_give_named_errors(tiny_dataset, tmp_path):
         read_view(tmp_path, 0)
     with pytest.raises(DatasetError, match="no split file"):
         read_split(tmp_path, "train")
-
-
-def test_atomic_write_leaves_no_temporary_files(tmp_path):
-    atomic_write_text(tmp_path / "a.txt", "hello")
-    assert (tmp_path / "a.txt").read_text() == "hello"
-    assert [p.name for p in tmp_path.iterdir()] == ["a.txt"]
-    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o644  # readable like a plain open(), not mkstemp's 0600

@@ -19,12 +19,16 @@ from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.scene import Scene, SceneObject
 from kgn_bench.viz.recording import (
     Recorder,
+    RecordingError,
+    copy_recording,
     gripper_sketch,
     merge_recordings,
     open_viewer,
     rerun_command,
     sanitize_path_part,
     score_colors,
+    serve_web,
+    web_viewer_url,
 )
 
 EXPECTED_PATHS = {
@@ -190,3 +194,47 @@ def test_score_colors_and_path_parts():
     with pytest.raises(ValueError):
         score_colors(np.array([0.0, np.nan]))
     assert sanitize_path_part("robot/link 3") == "robot_link_3"
+
+
+def _free_port_pair() -> int:
+    import socket
+
+    for port in range(19090, 19990, 2):
+        with socket.socket() as a, socket.socket() as b:
+            if a.connect_ex(("127.0.0.1", port)) != 0 and b.connect_ex(("127.0.0.1", port + 1)) != 0:
+                return port
+    raise RuntimeError("no free port pair")
+
+
+def test_replay_web_serves_the_viewer_on_localhost(trials, tmp_path):
+    import subprocess
+    import sys
+    import urllib.request
+
+    port = _free_port_pair()
+    cmd = [sys.executable, "-m", "kgn_bench.cli", "replay", str(trials[0]), "--web", "--port", str(port)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.strip() == f"serving {trials[0]}: open {web_viewer_url(port)}"
+        page = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=10).read().decode()
+        assert "rerun" in page.lower()
+        with pytest.raises(RecordingError, match=f"port {port} on 127.0.0.1 is in use"):
+            serve_web(trials[0], port=port, wait=False)
+    finally:
+        proc.send_signal(2)  # Ctrl-C: the command stops its server
+        proc.wait(timeout=20)
+    assert proc.returncode == 0
+    import socket
+
+    with socket.socket() as s:
+        assert s.connect_ex(("127.0.0.1", port)) != 0  # nothing left listening
+
+
+def test_copy_recording_is_atomic_and_names_a_bad_destination(trials, tmp_path):
+    from kgn_bench.errors import OutputError
+
+    copy_recording(trials[0], tmp_path / "c.rrd")
+    assert (tmp_path / "c.rrd").read_bytes() == trials[0].read_bytes()
+    with pytest.raises(OutputError, match=r"^cannot write /sys/c\.rrd: "):
+        copy_recording(trials[0], Path("/sys/c.rrd"))

@@ -2,6 +2,7 @@
 refusal of a foreign run folder, a clearance scene, and `kgn-bench run`."""
 
 import json
+import os
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -151,7 +152,7 @@ def test_a_folder_holding_another_run_is_refused(first_run, task, tmp_path):
 
 
 def test_bad_arguments(task, tmp_path):
-    with pytest.raises(ValueError, match="unknown detector 'nope'"):
+    with pytest.raises(RunError, match="unknown detector 'nope'"):
         run_benchmark(task, "nope", tmp_path / "a", progress=False)
     with pytest.raises(ValueError, match="workers"):
         run_benchmark(task, "oracle", tmp_path / "b", workers=0, progress=False)
@@ -228,3 +229,135 @@ def test_learned_detector_weights_are_checked_and_part_of_the_identity(tmp_path,
     assert len(hashes[0]) == 64
     assert hashes[0] != hashes[1]  # other weights: another run, never resumed into the same folder
     assert "weights_sha256" not in run_identity(task, "oracle")
+
+
+BAD_DETECTORS = '''
+import numpy as np
+from kgn_bench.detectors.antipodal import AntipodalDetector
+
+
+class ReturnsNone(AntipodalDetector):
+    name = "returns_none"
+
+    def detect(self, observation):
+        return None
+
+
+class ResetRaises(AntipodalDetector):
+    name = "reset_raises"
+
+    def reset(self, seed):
+        raise RuntimeError("no seed for me")
+
+
+class Stretched(AntipodalDetector):
+    name = "stretched"
+
+    def detect(self, observation):
+        cands = super().detect(observation)
+        poses = cands.poses.copy()
+        poses[:, :3, :3] *= 3.0
+        return type(cands)(poses, cands.widths, cands.confidences, cands.reprojection_errors)
+
+
+class BadConstructor:
+    def __init__(self):
+        raise OSError("weights server unreachable")
+'''
+
+
+@pytest.fixture
+def bad_detectors(tmp_path, monkeypatch):
+    """A module of faulty detectors, importable here and in spawned workers."""
+    import sys
+
+    folder = tmp_path / "mods"
+    folder.mkdir()
+    (folder / "baddets.py").write_text(BAD_DETECTORS)
+    monkeypatch.syspath_prepend(str(folder))
+    monkeypatch.setenv("PYTHONPATH", str(folder) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    yield "baddets"
+    sys.modules.pop("baddets", None)
+
+
+@pytest.mark.parametrize("name, reason, detail", [
+    ("ReturnsNone", "detector_error", "detect returned NoneType, not Candidates"),
+    ("ResetRaises", "detector_error", "reset: RuntimeError: no seed for me"),
+    ("Stretched", "no_candidate", ""),
+])
+def test_a_faulty_detector_becomes_attempts_and_the_run_goes_on(tmp_path, bad_detectors, name, reason, detail):
+    task = replace(load_task(_small_task(tmp_path)), trials=2)
+    result = run_benchmark(task, f"{bad_detectors}:{name}", tmp_path / name, progress=False)
+    records = read_trials(tmp_path / name / "trials.jsonl")
+    failures = {k: v for k, v in result.summary["failures"].items() if v}
+    assert len(records) == 2 and failures == {reason: 2}
+    assert all(r["attempts"][0]["detail"].endswith(detail) for r in records)
+    if name == "Stretched":  # never executed: every candidate is counted as an invalid pose
+        assert all(r["attempts"][0]["rejected"]["invalid_pose"] == r["attempts"][0]["candidates"] > 0
+                   for r in records)
+
+
+def test_a_detector_that_cannot_be_built_stops_the_run_before_anything_is_written(tmp_path, bad_detectors, capsys):
+    out = tmp_path / "run"
+    argv = ["run", str(_small_task(tmp_path)), "--detector", f"{bad_detectors}:BadConstructor", "--workers", "2",
+            "--out", str(out), "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == (f"kgn-bench: error: detector '{bad_detectors}:BadConstructor' could not be built: "
+                   "OSError: weights server unreachable\n")
+    assert not out.exists()
+
+
+def test_a_physics_fault_is_the_trials_physics_error_and_the_run_goes_on(tmp_path, monkeypatch):
+    import kgn_bench.sim.scene as scene_module
+
+    real = scene_module.arena_megabytes
+    # trial 1's scene gets a 20 KB arena: MuJoCo's stack overflows (mujoco.FatalError) while it is built
+    monkeypatch.setattr(scene_module, "arena_megabytes",
+                        lambda objects: 0.02 if objects[0].shape.name == "cylinder" else real(objects))
+    p = tmp_path / "two.toml"
+    p.write_text('[task]\nname = "two"\nprotocol = "single_object"\ntrials = 1\n'
+                 '[objects]\nset = ["cuboid", "cylinder", "sphere"]\n')
+    result = run_benchmark(load_task(p), "oracle", tmp_path / "run", progress=False)
+    records = sorted(read_trials(tmp_path / "run" / "trials.jsonl"), key=lambda r: r["index"])
+    assert [r["attempts"][0]["reason"] for r in records] == [None, "physics_error", None]
+    assert records[1]["attempts"][0]["detail"].startswith("no stable scene: MuJoCo stopped at t = 0.000 s: "
+                                                          "mj_stackAlloc: out of memory")
+    assert {k: v for k, v in result.summary["failures"].items() if v} == {"physics_error": 1}
+
+
+def test_a_second_run_into_a_folder_in_use_is_refused(tmp_path, capsys):
+    from kgn_bench.bench.runner import run_lock
+
+    out = tmp_path / "run"
+    argv = ["run", str(_small_task(tmp_path)), "--detector", "oracle", "--trials", "1", "--out", str(out), "--quiet"]
+    with run_lock(out):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err == f"kgn-bench: error: {out} is being written by another run (pid {os.getpid()}); wait for it " \
+                      "or use another --out\n"
+        assert sorted(p.name for p in out.iterdir()) == [".lock"]
+    assert main(argv) == 0  # released: the folder is usable
+    assert len(read_trials(out / "trials.jsonl")) == 1
+
+
+def test_run_json_records_the_environment(tmp_path):
+    from kgn_bench.environment import environment
+
+    run_benchmark(replace(load_task(_small_task(tmp_path)), trials=1), "oracle", tmp_path / "r", progress=False)
+    assert json.loads((tmp_path / "r" / "run.json").read_text())["environment"] == environment()
+
+
+def test_learned_detector_trials_are_identical_whatever_the_worker_count(tmp_path):
+    p = tmp_path / "k.toml"
+    p.write_text('[task]\nname = "k"\nprotocol = "single_object"\ntrials = 2\n'
+                 '[objects]\nset = ["cuboid", "ring", "stick"]\n')
+    task = load_task(p)
+    records = {}
+    for workers in (1, 2):
+        run_benchmark(task, "kgnv2", tmp_path / f"w{workers}", workers=workers, progress=False)
+        records[workers] = sorted(({k: v for k, v in r.items() if k != "timing"}
+                                   for r in read_trials(tmp_path / f"w{workers}" / "trials.jsonl")),
+                                  key=lambda r: r["index"])
+    assert len(records[1]) == 6 and records[1] == records[2]
+    assert (tmp_path / "w1" / "summary.json").read_text() == (tmp_path / "w2" / "summary.json").read_text()

@@ -43,3 +43,20 @@ def test_object_contacts_detects_interpenetration():
     assert scene.object_contacts(1, np.array([0]))
     scene.set_object_pose(1, make_pose(t=[0.2, 0, 0.025]))
     assert not scene.object_contacts(1, np.array([0]))
+
+
+def test_the_arena_grows_with_the_scene():
+    from kgn_bench.sim.scene import ARENA_BASE_MB, ARENA_MB_PER_GEOM, arena_megabytes
+
+    box = SceneObject(Cuboid((0.05, 0.05, 0.05)), (1, 0, 0), make_pose(t=[0, 0, 0.025]))
+    assert arena_megabytes([]) == ARENA_BASE_MB
+    assert arena_megabytes([box] * 10) == ARENA_BASE_MB + 10 * ARENA_MB_PER_GEOM
+    assert Scene([box]).model.narena == round(arena_megabytes([box]) * 1024) * 1024
+
+
+def test_a_mujoco_fatal_error_becomes_a_physics_error(monkeypatch, rng):
+    import kgn_bench.sim.scene as scene_module
+
+    monkeypatch.setattr(scene_module, "arena_megabytes", lambda objects: 0.02)  # 20 KB: the stack overflows
+    with pytest.raises(PhysicsError, match=r"^MuJoCo stopped at t = 0\.000 s: mj_stackAlloc: out of memory"):
+        Scene(_six_objects(rng))

@@ -366,3 +366,30 @@ def test_a_shallow_grasp_is_pushed_until_the_fingers_bite(points, ik):
     flat = np.concatenate([points[:, :2], np.where(points[:, 2:] > 0, 0.005, 0.0)], axis=1)
     sel = _select([_pose((0.0, 0.0, 0.003))], [0.06], flat, ik)
     assert sel.index == 0 and sel.grasp[2, 3] == pytest.approx(CFG.table_clearance)
+
+
+def test_non_rigid_or_non_finite_candidates_are_never_executed(points, ik):
+    good = _pose((0.0, 0.0, 0.02))
+    scaled = good.copy()
+    scaled[:3, :3] *= 3.0  # not a rotation: would pass every geometric check it is put through
+    nan = good.copy()
+    nan[0, 3] = np.nan
+    mirrored = good.copy()
+    mirrored[:3, 2] *= -1.0  # det −1
+    sel = _select([scaled, nan, mirrored], [0.06] * 3, points, ik, conf=[1.0, 1.0, 1.0])
+    assert sel.index is None and sel.rejected["invalid_pose"] == 3 and sel.reason == "no_candidate"
+    sel = _select([scaled, good], [0.06, 0.06], points, ik, conf=[1.0, 0.1])
+    assert sel.index == 1 and sel.rejected["invalid_pose"] == 1
+    sel = _select([good, good], [np.inf, 0.06], points, ik, conf=[1.0, np.nan])
+    assert sel.index is None and sel.rejected["invalid_pose"] == 2
+    assert "invalid_pose" not in _select([good], [0.06], points, ik).rejected  # records unchanged otherwise
+
+
+def test_valid_candidates():
+    from kgn_bench.bench.selector import valid_candidates
+
+    poses = np.stack([np.eye(4)] * 3)
+    poses[1, 3, 0] = 1.0  # bottom row not [0 0 0 1]
+    poses[2, :3, :3] = rot_z(0.3) @ np.diag([1.0, 1.0, 1.0 + 1e-3])  # slightly scaled
+    assert valid_candidates(poses, np.ones(3), np.ones(3)).tolist() == [True, False, False]
+    assert valid_candidates(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0)).shape == (0,)

@@ -6,7 +6,8 @@ A plan file (``tasks/benchmark.toml``)::
     tasks = ["single_object", "single_household", "multi_object", "multi_household"]   # tasks/<name>.toml
     detectors = ["kgnv2", "kgn", "kgn_depth", "antipodal", "random", "oracle"]
 
-Task names are looked up beside the plan file. Runs go to ``RUNS/<task>/<detector>`` and resume like any run;
+A plan is named by its path or its bundled name (``benchmark``); its task names are looked up beside the
+plan file, then among the bundled tasks. Runs go to ``RUNS/<task>/<detector>`` and resume like any run;
 all detectors see the same scenes because a trial's scene depends only on the task's seed and the trial index.
 """
 
@@ -15,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from kgn_bench.config import ConfigError, TaskConfig, load_task, read_toml
+from kgn_bench.config import ConfigError, TaskConfig, load_task, read_toml, resolve_task
 
 from .runner import run_benchmark
 
@@ -34,7 +35,7 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
     """Read a plan; ``tasks`` / ``detectors`` (if given) restrict it. ``ConfigError`` names the problem."""
     from kgn_bench.detectors import detector_factory
 
-    path = Path(path)
+    path = resolve_task(path)
     raw = read_toml(path, "plan file")
     section = raw.get("benchmark")
     if not isinstance(section, dict) or set(raw) != {"benchmark"}:
@@ -58,7 +59,8 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
             raise ConfigError(f"{path}: {e}") from None
     names = [n for n in names if not tasks or n in tasks]
     dets = [d for d in dets if not detectors or d in detectors]
-    loaded = tuple(load_task(path.parent / f"{n}.toml") for n in names)
+    loaded = tuple(load_task(path.parent / f"{n}.toml" if (path.parent / f"{n}.toml").is_file() else n)
+                   for n in names)
     return BenchmarkPlan(loaded, tuple(dets))
 
 

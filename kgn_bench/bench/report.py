@@ -15,15 +15,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from kgn_bench.data.format import atomic_write_text
+from kgn_bench.errors import KGNBenchError
+from kgn_bench.io import atomic_write_text
 
 from .attempt import FAILURE_REASONS
 from .stats import Rate, per_object_meaning
 
-__all__ = ["COLUMNS", "DETECTOR_ORDER", "PAPER", "Column", "ReportError", "build_report", "load_summaries"]
+__all__ = ["COLUMNS", "DETECTOR_ORDER", "PAPER", "Column", "ReportError", "build_report", "environment_warnings",
+           "load_summaries"]
 
 
-class ReportError(RuntimeError):
+class ReportError(KGNBenchError, RuntimeError):
     """A run folder that cannot be reported (missing or unreadable summary, two runs for one cell)."""
 
 
@@ -87,8 +89,46 @@ def load_summaries(folders: list[Path]) -> list[dict[str, Any]]:
         if missing:
             raise ReportError(f"{path}: not a run summary (no {', '.join(missing)})")
         summary["run"] = str(folder)
+        summary["environment"] = _run_environment(Path(folder))
         out.append(summary)
     return out
+
+
+def _run_environment(folder: Path) -> dict[str, Any] | None:
+    """The package versions ``run.json`` recorded (None for runs made before they were recorded)."""
+    try:
+        return json.loads((folder / "run.json").read_text()).get("environment")
+    except (OSError, json.JSONDecodeError, AttributeError):
+        return None
+
+
+def environment_warnings(summaries: list[dict[str, Any]]) -> list[str]:
+    """One line per run whose environment differs from the first run's (or that recorded none), naming
+    what differs: mixing environments can change outcomes, so such a table compares unlike with unlike."""
+    from kgn_bench.environment import environment_differences
+
+    recorded = [s for s in summaries if s.get("environment")]
+    out = [f"{s['run']} records no package versions (made before they were recorded)"
+           for s in summaries if not s.get("environment")]
+    if recorded:
+        first = recorded[0]
+        for s in recorded[1:]:
+            diff = environment_differences(first["environment"], s["environment"])
+            if diff:
+                out.append(f"runs from different environments: {s['run']} differs from {first['run']} in "
+                           + ", ".join(diff))
+    return out
+
+
+def _environment_line(summaries: list[dict[str, Any]]) -> str:
+    envs = [s["environment"] for s in summaries if s.get("environment")]
+    if not envs:
+        return "Environment: not recorded."
+    if len({json.dumps(e, sort_keys=True) for e in envs}) > 1 or len(envs) < len(summaries):
+        return "Environment: MIXED (see the warnings of `kgn-bench report`)."
+    e = envs[0]
+    return (f"Environment: Python {e['python']} on {e['machine']}, "
+            + ", ".join(f"{k} {v}" for k, v in e["packages"].items()) + ".")
 
 
 def _columns(summaries: list[dict[str, Any]]) -> list[Column]:
@@ -147,7 +187,7 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         lines.append(f"| {det} | {attempts} | " + " | ".join(str(counts[r]) for r in FAILURE_REASONS) + " |")
     per_object = _per_object(summaries, list(dict.fromkeys(c.task for c in columns)), detectors)
     lines += _per_object_lines(per_object, {s["task"]: s.get("protocol") for s in summaries})
-    lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries)]
+    lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries), "", _environment_line(summaries)]
     text = "\n".join(lines) + "\n"
     payload = {
         "columns": [{"task": c.task, "rate": c.rate, "label": c.label} for c in columns],
@@ -158,6 +198,7 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         "paper": {det: {f"{t}/{r}": {"rate": v, "half_width": h, "trials": n} for (t, r), (v, h, n) in f.items()}
                   for det, f in PAPER.items()},
         "runs": [s["run"] for s in summaries],
+        "environment_warnings": environment_warnings(summaries),
     }
     if out is not None:
         out = Path(out)

@@ -1,29 +1,41 @@
 """The benchmark runner: trials in worker processes, one JSON line per finished trial, resumable.
 
-A run folder holds ``run.json`` (the run's identity: task config, detector, seed, trial count, git commit),
+A run folder holds ``run.json`` (the run's identity: task config, detector, seed, trial count; and the git
+commit and package versions of the invocation that created it),
 ``trials.jsonl`` (append-only, one finished trial per line, in completion order), then ``summary.json``,
 ``summary.md`` and ``timing.json``, and with ``record`` the per-trial recordings merged into
 ``recording.rrd``. Rerunning the same command resumes: finished trials are kept, a line cut short by a
 kill is dropped, and only missing trials run. Trial outcomes depend only on (task, seed, index), so the
-summary is the same whatever the worker count or interruptions; ``timing.json`` holds the wall-clock figures
-of the last invocation that ran trials.
+summary is the same whatever the worker count or interruptions (every trial runs with the thread settings
+of ``kgn_bench.threads``); ``timing.json`` holds the wall-clock figures of the last invocation that ran trials.
+
+Before anything is written, the detector is built once in the calling process, so that an unknown name, a
+constructor that raises or weights that do not load stop the run with one line. While a run writes to a
+folder it holds an exclusive lock on ``.lock`` there; a second run into the same folder is refused.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import subprocess
 import time
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 from kgn_bench.config import TaskConfig
-from kgn_bench.data.format import atomic_write_text
+from kgn_bench.environment import environment
+from kgn_bench.errors import KGNBenchError
+from kgn_bench.io import atomic_write_text
 from kgn_bench.progress import Progress
+from kgn_bench.threads import pin_worker_threads, trial_threads
 
 from .stats import Rate, summarise, summary_markdown
 from .trial import TIMING_KEYS, run_trial
@@ -31,7 +43,7 @@ from .trial import TIMING_KEYS, run_trial
 __all__ = ["RunError", "RunResult", "read_trials", "run_benchmark"]
 
 
-class RunError(RuntimeError):
+class RunError(KGNBenchError, RuntimeError):
     """A run folder that cannot be used (it holds another run, or a corrupt file)."""
 
 
@@ -57,14 +69,12 @@ def _weights_identity(detector: str) -> str | None:
 
     if detector not in LEARNED:
         return None
-    import hashlib
-
     from kgn_bench.detectors.kgn import weights_path
-    from kgn_bench.model.checkpoint import load_checkpoint
+    from kgn_bench.model.checkpoint import file_sha256, load_checkpoint
 
     path = weights_path(detector)
     load_checkpoint(path)  # a missing or corrupt file fails here, in one line, before any trial
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    return file_sha256(path)
 
 
 def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
@@ -113,41 +123,85 @@ def _prepare(out: Path, identity: dict[str, Any]) -> None:
             existing = json.loads(run_file.read_text())
         except json.JSONDecodeError:
             raise RunError(f"{run_file} is corrupt; remove the folder or use another --out") from None
-        mine = {k: v for k, v in existing.items() if k != "commit"}
+        mine = {k: v for k, v in existing.items() if k not in ("commit", "environment")}
         if mine != identity:
             diff = [k for k in identity if mine.get(k) != identity[k]]
             raise RunError(f"{out} holds another run (different {', '.join(diff)}); use another --out")
     elif any(p.name != ".lock" for p in out.iterdir()):
         raise RunError(f"{out} is not empty and holds no run; use another --out")
     else:
-        atomic_write_text(run_file, json.dumps({**identity, "commit": _git_commit()}, indent=2) + "\n")
+        record = {**identity, "commit": _git_commit(), "environment": environment()}
+        atomic_write_text(run_file, json.dumps(record, indent=2) + "\n")
+
+
+@contextmanager
+def run_lock(out: Path) -> Iterator[None]:
+    """Hold the exclusive lock of the run folder ``out`` (``out/.lock``) for the block; ``RunError`` at once
+    if another process holds it. The lock goes with the process, so a killed run leaves none behind."""
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ".lock", "a+") as f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            f.seek(0)
+            holder = f.read().strip() or "another process"
+            raise RunError(f"{out} is being written by another run ({holder}); wait for it or use another --out"
+                           ) from None
+        f.seek(0)
+        f.truncate()
+        f.write(f"pid {os.getpid()}\n")
+        f.flush()
+        try:
+            yield
+        finally:
+            f.seek(0)
+            f.truncate()
+            fcntl.flock(f.fileno(), fcntl.LOCK_UN)
+
+
+def build_detector(name: str):
+    """The detector ``name`` built in this process; ``RunError`` with one line if it cannot be built (an
+    unknown name, a constructor that raises, weights that are missing, corrupt or do not match their card)."""
+    from kgn_bench.detectors import make_detector
+
+    try:
+        return make_detector(name)
+    except KGNBenchError:
+        raise
+    except ValueError as e:
+        raise RunError(str(e)) from None
+    except Exception as e:  # a user's detector may raise anything
+        first = str(e).strip().splitlines()[0] if str(e).strip() else ""
+        raise RunError(f"detector {name!r} could not be built: {type(e).__name__}" + (f": {first}" if first else "")
+                       ) from None
 
 
 _WORKER: dict[str, Any] = {}
 
 
 def _worker_init(detector: str) -> None:
-    os.environ.setdefault("LP_NUM_THREADS", "1")
-    from kgn_bench.detectors import LEARNED
-
-    if detector in LEARNED:  # one torch thread per worker: two-thread torch stalls when the workers fill the cores
-        import torch
-
-        torch.set_num_threads(1)
     _worker_setup(detector)
+    pin_worker_threads()
 
 
-def _worker_setup(detector: str) -> None:
-    from kgn_bench.detectors import make_detector
+def _worker_setup(detector: str, instance: Any = None) -> None:
     from kgn_bench.sim.control import IK
 
-    if _WORKER.get("name") != detector:
-        _WORKER.update(name=detector, detector=make_detector(detector), ik=IK())
+    if _WORKER.get("name") != detector or instance is not None:
+        _WORKER.update(name=detector, detector=instance if instance is not None else build_detector(detector),
+                       ik=IK())
 
 
 def _run_one(args: tuple[TaskConfig, int, str | None]) -> dict[str, Any]:
     task, index, record = args
-    return run_trial(task, index, _WORKER["detector"], _WORKER["ik"], Path(record) if record else None)
+    try:
+        return run_trial(task, index, _WORKER["detector"], _WORKER["ik"], Path(record) if record else None)
+    except KGNBenchError:
+        raise
+    except Exception as e:  # a defect, not a trial outcome: stop the run, naming the trial
+        first = str(e).strip().splitlines()[0] if str(e).strip() else ""
+        raise RunError(f"trial {index} of {task.name} failed: {type(e).__name__}" + (f": {first}" if first else "")
+                       ) from e
 
 
 def _running_rates(records: list[dict[str, Any]]) -> str:
@@ -164,12 +218,16 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
     """Run (or finish) ``task`` with ``detector`` into ``out``; writes the summaries; returns them."""
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
-    from kgn_bench.detectors import detector_factory
-
-    detector_factory(detector)  # an unknown name or a module that does not import fails here, before any trial
+    instance = build_detector(detector)  # fails here, in one line, before anything is written
     out = Path(out)
     identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
-    _prepare(out, identity)
+    with run_lock(out):
+        _prepare(out, identity)
+        return _run_locked(task, detector, instance, out, identity, workers, record, progress)
+
+
+def _run_locked(task: TaskConfig, detector: str, instance: Any, out: Path, identity: dict[str, Any], workers: int,
+                record: bool, progress: bool) -> RunResult:
     trials_path = out / "trials.jsonl"
     records = read_trials(trials_path)
     done = {r["index"] for r in records}
@@ -197,15 +255,25 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
         bar.update(1, _running_rates(records))
 
     if workers == 1 or len(todo) <= 1:
-        _worker_setup(detector)
-        for job in jobs:
-            finished(_run_one(job))
+        _worker_setup(detector, instance)
+        with trial_threads():
+            for job in jobs:
+                finished(_run_one(job))
     else:
-        with ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
-                                 initializer=_worker_init, initargs=(detector,)) as pool:
-            futures = [pool.submit(_run_one, job) for job in jobs]
-            for fut in as_completed(futures):
-                finished(fut.result())
+        try:
+            with ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
+                                     initializer=_worker_init, initargs=(detector,)) as pool:
+                futures = [pool.submit(_run_one, job) for job in jobs]
+                try:
+                    for fut in as_completed(futures):
+                        finished(fut.result())
+                except BaseException:
+                    for f in futures:
+                        f.cancel()
+                    raise
+        except BrokenProcessPool:
+            raise RunError(f"a worker process died while running {task.name} ({len(records)} of {task.n_trials} "
+                           "trials finished and kept); rerun the same command to resume") from None
     wall = time.perf_counter() - start
     run_meta = {k: identity[k] for k in ("task", "protocol", "detector", "seed")}
     summary = summarise(records, run_meta)

@@ -285,6 +285,25 @@ def level_poses(poses: np.ndarray, max_tilt_deg: float) -> np.ndarray:
     return out
 
 
+RIGID_TOLERANCE = 1e-4
+"""How far ``RᵀR`` may be from the identity (max abs entry) and ``det R`` from 1 for a rigid pose."""
+
+
+def valid_candidates(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray) -> np.ndarray:
+    """(N,) bool: the pose is a finite rigid transform (``RᵀR = I`` and ``det R = 1`` within
+    ``RIGID_TOLERANCE``, last row ``[0, 0, 0, 1]``) and the width and confidence are finite."""
+    n = len(poses)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
+    finite = np.all(np.isfinite(poses.reshape(n, -1)), axis=1) & np.isfinite(widths) & np.isfinite(confidences)
+    safe = np.where(finite[:, None, None], poses, np.eye(4))
+    R = safe[:, :3, :3]
+    orthonormal = np.abs(np.swapaxes(R, 1, 2) @ R - np.eye(3)).max(axis=(1, 2)) < RIGID_TOLERANCE
+    proper = np.abs(np.linalg.det(R) - 1.0) < RIGID_TOLERANCE
+    bottom = np.all(np.abs(safe[:, 3] - np.array([0.0, 0.0, 0.0, 1.0])) < RIGID_TOLERANCE, axis=1)
+    return finite & orthonormal & proper & bottom
+
+
 def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
                  points: np.ndarray, ik: IK, cfg: SelectorConfig, execution: ExecutionConfig,
                  failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
@@ -292,12 +311,18 @@ def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray,
     skipping candidates near the ``failed`` (K, 4, 4) world grasps of earlier attempts; ``view`` (the
     depth image the points came from) enables the occlusion check. A candidate that fails the gripper prior
     where it is is tried shifted by ``search_offsets`` (the first shift that passes is kept); its rejection is
-    counted under the check its unshifted pose failed."""
+    counted under the check its unshifted pose failed. Candidates whose pose is not a finite rigid transform,
+    or whose width or confidence is not finite, are never executed: they are counted as ``invalid_pose``."""
+    valid = valid_candidates(poses, widths, confidences)
+    poses = np.where(valid[:, None, None], poses, np.eye(4))
     if cfg.level_deg > 0:
         poses = level_poses(poses, cfg.level_deg)
-    scores = score_candidates(confidences, errors, cfg)
+    scores = np.where(valid, score_candidates(np.where(valid, confidences, 0.0), errors, cfg), -np.inf)
     sel = Selection(index=None, scores=scores)
-    order = np.argsort(-scores, kind="stable")[: cfg.max_candidates]
+    if not valid.all():
+        sel.rejected["invalid_pose"] = int((~valid).sum())  # only when it happens: records stay as they were
+    order = np.argsort(-scores, kind="stable")
+    order = order[valid[order]][: cfg.max_candidates]
     back = execution.pregrasp_distance
     ready_closing = ik.tcp_pose(READY_Q)[:3, 2]
     palm_samples = np.concatenate([_box_samples(b.swept(back)) for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from kgn_bench.config import TaskConfig, apply_override
-from kgn_bench.data.format import atomic_write_text
+from kgn_bench.io import atomic_write_text
 
 from .runner import run_benchmark
 from .stats import Rate

@@ -6,7 +6,9 @@ attempts until the table is clear, ``max_consecutive_failures`` failures in a ro
 ``default_rng([seed, index])``, so a trial's outcome depends only on the task, its seed and its index.
 
 The returned record is plain JSON data; its ``timing`` block (wall seconds) is the only part that varies
-between runs.
+between runs. Faults are outcomes, not crashes: a scene that cannot be built or a MuJoCo fault becomes a
+``physics_error`` attempt, and a detector whose ``reset`` or ``detect`` raises, or whose ``detect`` returns
+something other than ``Candidates``, a ``detector_error`` attempt.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from kgn_bench.config import TaskConfig
-from kgn_bench.detectors.base import Candidates, Detector, Observation
+from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.detectors.oracle import on_table
 from kgn_bench.shapes import shape_class
 from kgn_bench.sim.camera import orbit_pose
@@ -92,12 +94,35 @@ def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]
     raise PhysicsError(f"trial {index}: no stable scene")
 
 
+def _error_line(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}".splitlines()[0][:200]
+
+
+def _failed_attempt(reason: str, detail: str) -> dict[str, Any]:
+    return {"success": False, "reason": reason, "object": None, "candidates": 0, "selected": None, "score": None,
+            "rejected": {}, "detail": detail, "sim_time": 0.0}
+
+
+def _fault_record(task: TaskConfig, index: int, reason: str, detail: str, clock: _Clock,
+                  names: list[str], placed: list[str]) -> dict[str, Any]:
+    """The record of a trial that ended before its first capture (no stable scene, a detector that cannot
+    reset): one failed attempt with ``reason``."""
+    return {"index": index, "protocol": task.protocol, "objects": names, "placed": len(placed),
+            "placed_objects": placed, "removed": 0, "attempts": [_failed_attempt(reason, detail)],
+            "timing": {k: round(v, 4) for k, v in clock.totals.items()}}
+
+
 def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: Path | None = None) -> dict[str, Any]:
     """Run trial ``index`` of ``task`` with ``detector``; returns its JSON record."""
     clock = _Clock()
     t = time.perf_counter()
     recorder = None
-    scene, executor = _build_scene(task, index, ik)
+    try:
+        scene, executor = _build_scene(task, index, ik)
+    except PhysicsError as e:
+        names = [o.shape.name for o in trial_objects(task, index, np.random.default_rng([task.seed, index]))]
+        clock.add("setup", t)
+        return _fault_record(task, index, "physics_error", f"no stable scene: {e}", clock, names, names)
     if record is not None:
         from kgn_bench.viz.recording import Recorder
 
@@ -111,12 +136,18 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
                 recorder.log_state(scene.model, scene.data)
 
         executor.on_tick = on_tick
-    detector.reset([task.seed, index])
-    if detector.privileged:
-        detector.attach(scene)  # type: ignore[attr-defined]
-    cam = camera_pose(task)
     names = [o.shape.name for o in scene.objects]
     placed_names = [name for i, name in enumerate(names) if on_table(scene, i)]
+    try:
+        detector.reset([task.seed, index])
+        if detector.privileged:
+            detector.attach(scene)  # type: ignore[attr-defined]
+    except Exception as e:  # a detector bug must not stop the run: record it
+        if recorder is not None:
+            recorder.close()
+        clock.add("setup", t)
+        return _fault_record(task, index, "detector_error", f"reset: {_error_line(e)}", clock, names, placed_names)
+    cam = camera_pose(task)
     attempts: list[dict[str, Any]] = []
     t = clock.add("setup", t)
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
@@ -137,8 +168,11 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
             t = clock.add("render", t)
             if recorder is not None:
                 recorder.log_observation(view.rgb, depth, scene.intrinsics.K, cam, scene.data.time)
-            attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
-                                           np.array(failed).reshape(-1, 4, 4))
+            try:
+                attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
+                                               np.array(failed).reshape(-1, 4, 4))
+            except PhysicsError as e:  # a fault outside the grasp's own execution (the settling wait)
+                attempt, sel, cands = _failed_attempt("physics_error", str(e)), None, None
             attempts.append(attempt)
             if not attempt["success"] and sel is not None:
                 failed.extend(sel.tried)
@@ -176,9 +210,13 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
     cands = sel = None
     try:
         cands = detector.detect(obs)
+        if not isinstance(cands, Candidates):
+            got = type(cands).__name__
+            cands = None
+            raise DetectorError(f"detect returned {got}, not Candidates")
     except Exception as e:  # a detector bug must not stop the run: record it
         clock.add("detect", t)
-        result = AttemptResult("detector_error", detail=f"{type(e).__name__}: {e}".splitlines()[0][:200])
+        result = AttemptResult("detector_error", detail=_error_line(e))
     else:
         t = clock.add("detect", t)
         points = obs.points_world(stride=task.selector.point_stride)

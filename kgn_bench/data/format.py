@@ -1,4 +1,4 @@
-"""The PS dataset on disk: layout, annotation schema, image codecs and atomic writes.
+"""The PS dataset on disk: layout, annotation schema and image codecs.
 
 Layout of a dataset folder::
 
@@ -20,16 +20,13 @@ index is always whole.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
 
 import cv2
 import numpy as np
 
+from kgn_bench.errors import KGNBenchError
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes import GraspDensity, shape_from_dims
 from kgn_bench.sim.camera import Intrinsics
@@ -41,8 +38,6 @@ __all__ = [
     "DatasetError",
     "ObjectAnnotation",
     "SceneAnnotation",
-    "atomic_write",
-    "atomic_write_text",
     "read_manifest",
     "read_split",
     "read_view",
@@ -56,7 +51,7 @@ DEPTH_UNIT = 1e-4
 """Metres per count of the 16-bit depth PNG (0.1 mm; the range ends at 6.5535 m)."""
 
 
-class DatasetError(ValueError):
+class DatasetError(KGNBenchError, ValueError):
     """A dataset file is missing, malformed or inconsistent."""
 
 
@@ -203,28 +198,6 @@ def read_view(folder: Path, view: int) -> RGBD:
     if depth.dtype != np.uint16 or mask.dtype != np.uint8:
         raise DatasetError(f"unexpected image types in {folder} view {view}: depth {depth.dtype}, mask {mask.dtype}")
     return RGBD(rgb=cv2.cvtColor(rgb, cv2.COLOR_BGR2RGB), depth=decode_depth(depth), mask=mask)
-
-
-def atomic_write(path: Path, write: Callable[[BinaryIO], None]) -> None:
-    """Call ``write`` on a temporary file beside ``path``, fsync it and rename it into place (mode 0644, like
-    a plain ``open``), so that ``path`` is either the old file or the whole new one, never a part."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically (``atomic_write``)."""
-    atomic_write(path, lambda f: f.write(text.encode()))
 
 
 def read_manifest(root: Path) -> dict:

@@ -23,11 +23,11 @@ from kgn_bench.data.format import (
     DatasetError,
     ObjectAnnotation,
     SceneAnnotation,
-    atomic_write_text,
     scene_dir,
     write_view,
 )
 from kgn_bench.grasp import GraspSet
+from kgn_bench.io import atomic_write_text
 from kgn_bench.progress import Progress
 from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_class, shape_from_dims
 from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics

@@ -13,13 +13,14 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import backproject, transform_points
 from kgn_bench.sim.camera import Intrinsics
 
 __all__ = ["Candidates", "Detector", "DetectorError", "Observation"]
 
 
-class DetectorError(ValueError):
+class DetectorError(KGNBenchError, ValueError):
     """An observation a detector cannot work with (wrong shape, dtype or no valid depth)."""
 
 

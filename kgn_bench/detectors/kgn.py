@@ -20,20 +20,23 @@ from kgn_bench.model.checkpoint import LoadedModel, load_model
 from kgn_bench.model.decode import DecodeConfig, decode
 from kgn_bench.model.preprocess import prepare
 from kgn_bench.model.variants import get_variant
+from kgn_bench.resources import weights_dir
 
 from .base import Candidates, DetectorError, Observation
 
 __all__ = ["WEIGHTS_DIR", "KGNDetector", "weights_path"]
 
-WEIGHTS_DIR = Path(__file__).resolve().parents[2] / "assets" / "weights"
+WEIGHTS_DIR = weights_dir()
+"""The shipped weights (``kgn_bench.resources.weights_dir``)."""
 
 
-def weights_path(variant_name: str, weights: str | Path | None = None) -> Path:
-    """The weights file for ``variant_name``: ``weights`` if it is a path to a file, else
-    ``assets/weights/<weights or the variant's training variant>.pt``."""
+def weights_path(variant_name: str | None, weights: str | Path | None = None) -> Path:
+    """The weights file for ``variant_name``: ``weights`` if it is a path to a file, else the shipped
+    ``<weights>.pt``, else the shipped weights of the variant's training variant (``kgnv2`` when neither
+    is given)."""
     if weights is not None and (Path(weights).suffix == ".pt" or Path(weights).is_file()):
         return Path(weights)
-    name = str(weights) if weights is not None else get_variant(variant_name).weights_variant
+    name = str(weights) if weights is not None else get_variant(variant_name or "kgnv2").weights_variant
     return WEIGHTS_DIR / f"{name}.pt"
 
 
@@ -43,14 +46,19 @@ class KGNDetector:
 
     privileged = False
 
-    def __init__(self, variant: str = "kgnv2", weights: str | Path | None = None,
+    def __init__(self, variant: str | None = "kgnv2", weights: str | Path | None = None,
                  model: LoadedModel | None = None, decode_config: DecodeConfig | None = None,
                  threads: int | None = None) -> None:
-        self.variant = get_variant(variant)
-        self.name = variant
-        self.model = model if model is not None else load_model(weights_path(variant, weights), self.variant)
+        """``variant`` None decodes as the variant the weights were trained as; an explicit one must be
+        servable by them (``kgn_depth`` decodes ``kgn`` weights), else ``CheckpointError``."""
+        wanted = get_variant(variant) if variant is not None else None
+        if model is None:
+            model = load_model(weights_path(variant, weights), wanted)
+        self.model = model
+        self.variant = wanted or model.variant
+        self.name = self.variant.name
         if self.model.variant.weights_variant != self.variant.weights_variant:
-            raise DetectorError(f"model of variant {self.model.variant.name!r} cannot decode as {variant!r}")
+            raise DetectorError(f"model of variant {self.model.variant.name!r} cannot decode as {self.name!r}")
         self.decode_config = decode_config or DecodeConfig()
         self.threads = threads
         self.timing: dict[str, float] = {}

@@ -22,8 +22,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from kgn_bench.data.format import atomic_write_text
 from kgn_bench.detectors.kgn import WEIGHTS_DIR
+from kgn_bench.errors import KGNBenchError
+from kgn_bench.io import atomic_write_text
 from kgn_bench.model.checkpoint import dataset_identity
 from kgn_bench.sim.collision import LABEL_VERSION
 
@@ -47,7 +48,7 @@ METRICS = ("gsr", "gcr", "osr")
 THRESHOLD_LABELS = ("1 cm / 20°", "2 cm / 30°", "3 cm / 45°")
 
 
-class ExperimentError(RuntimeError):
+class ExperimentError(KGNBenchError, RuntimeError):
     """A model's weights or a dataset a table needs is missing; the message says how to make it."""
 
 
@@ -88,10 +89,11 @@ class ModelSpec:
 
     @property
     def commands(self) -> str:
-        """How to produce the weights: train, then export."""
-        run = Path(self.config).stem.removeprefix("train_")
-        return (f"kgn-bench train {self.config} && "
-                f"kgn-bench export runs/train_{run}/final.pt --name {self.weights}")
+        """How to produce the weights: train, then export (the run folder is the config's ``[train] out``)."""
+        from kgn_bench.model.train import load_train_config
+
+        out = load_train_config(Path(self.config).stem).train.out
+        return f"kgn-bench train {self.config} && kgn-bench export {out}/final.pt --name {self.weights}"
 
 
 MODELS: dict[str, ModelSpec] = {

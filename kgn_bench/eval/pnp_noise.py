@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kgn_bench.data.format import atomic_write_text
 from kgn_bench.grasp import grasp_rotation_error, keypoints_in_frame
+from kgn_bench.io import atomic_write_text
 from kgn_bench.model.decode import solve_box_pnp_batch
 from kgn_bench.model.variants import BOX_SIDE, get_variant
 from kgn_bench.sim.camera import REALSENSE

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import subprocess
 from dataclasses import asdict, fields
 from pathlib import Path
@@ -24,7 +25,8 @@ from typing import Any
 
 import torch
 
-from kgn_bench.data.format import atomic_write
+from kgn_bench.errors import KGNBenchError
+from kgn_bench.io import atomic_write, atomic_write_text
 from kgn_bench.model.network import KGNNet, NetworkConfig, build_network
 from kgn_bench.model.preprocess import InputConfig
 from kgn_bench.model.variants import Variant, get_variant
@@ -48,7 +50,7 @@ FORMAT = "kgn-bench-checkpoint"
 VERSION = 1
 
 
-class CheckpointError(ValueError):
+class CheckpointError(KGNBenchError, ValueError):
     """A checkpoint file is missing, corrupt, of another format or of another variant."""
 
 
@@ -86,11 +88,43 @@ def save_checkpoint(path: Path, payload: dict[str, Any]) -> None:
     atomic_write(path, lambda f: torch.save(data, f))
 
 
+_CARD_SHA = re.compile(r"^\| sha256 \| `([0-9a-f]{64})` \|$", re.MULTILINE)
+
+
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def card_sha256(weights: Path) -> str | None:
+    """The SHA-256 recorded in the model card beside ``weights`` (``<name>.md``), None without one."""
+    card = Path(weights).with_suffix(".md")
+    if not card.is_file():
+        return None
+    found = _CARD_SHA.search(card.read_text(errors="replace"))
+    return found.group(1) if found else None
+
+
+def verify_weights(path: Path) -> None:
+    """Check a weights file against the SHA-256 of its model card; ``CheckpointError`` on a mismatch. Files
+    without a card (a training run's checkpoints, one's own exports elsewhere) are not checked."""
+    expected = card_sha256(path)
+    if expected is not None and file_sha256(path) != expected:
+        raise CheckpointError(f"{path}: SHA-256 differs from its model card {Path(path).with_suffix('.md').name} "
+                              "(damaged or replaced file; restore it, or re-export it to write a new card)")
+
+
 def load_checkpoint(path: Path) -> dict[str, Any]:
-    """Read a checkpoint dict; ``CheckpointError`` if the file is missing, corrupt or not ours."""
+    """Read a checkpoint dict; ``CheckpointError`` if the file is missing, corrupt, not ours, or does not
+    match the SHA-256 of its model card (``verify_weights``)."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"no checkpoint at {path}")
+    verify_weights(path)
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many types for a damaged file
@@ -166,9 +200,9 @@ def model_payload(net: torch.nn.Module, variant: str, network: NetworkConfig, in
             "model": {k: v.detach().cpu() for k, v in net.state_dict().items()}}
 
 
-def model_card(data: dict[str, Any], name: str, size_bytes: int) -> str:
-    """A Markdown model card from a checkpoint dict: variant, data, schedule, wall time, machine, commit,
-    final losses and the last held-out metrics."""
+def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | None = None) -> str:
+    """A Markdown model card from a checkpoint dict: variant, the weights file's SHA-256 (checked on every
+    load), data, schedule, wall time, machine, commit, final losses and the last held-out metrics."""
     train = data.get("train", {}).get("train", {})
     history = data.get("history", [])
     last = history[-1] if history else {}
@@ -182,6 +216,7 @@ def model_card(data: dict[str, Any], name: str, size_bytes: int) -> str:
         "| field | value |",
         "| --- | --- |",
         f"| variant | `{data['variant']}` |",
+        *([f"| sha256 | `{sha256}` |"] if sha256 else []),
         f"| parameters | {data.get('parameters', 'n/a')} |",
         f"| file size | {size_bytes / 1e6:.1f} MB |",
         f"| data | `{ds.get('path', '?')}`: {manifest.get('mode', '?')}-object PS, "
@@ -224,5 +259,5 @@ def export_weights(src: Path, name: str, out_dir: Path) -> tuple[Path, Path]:
     weights = out_dir / f"{name}.pt"
     save_checkpoint(weights, slim)
     card = out_dir / f"{name}.md"
-    card.write_text(model_card(data, name, weights.stat().st_size))
+    atomic_write_text(card, model_card(data, name, weights.stat().st_size, file_sha256(weights)))
     return weights, card

@@ -16,7 +16,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import mink
-import mujoco
 import numpy as np
 
 from kgn_bench.geometry import make_pose, matrix_from_rotvec, rotation_angle, rotvec_from_matrix
@@ -163,7 +162,7 @@ class Executor:
         self.q_ref = np.array(q_arm, dtype=float)
         self.grip_ref = opening / 2.0
         self._write_ctrl()
-        mujoco.mj_forward(self.scene.model, d)
+        self.scene.forward()
 
     def tcp_pose(self) -> np.ndarray:
         """The physical TCP pose ``T_world_tcp`` now."""

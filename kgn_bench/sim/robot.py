@@ -20,7 +20,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -28,6 +27,7 @@ from dm_control import mjcf
 
 from kgn_bench.geometry import quat_wxyz_from_matrix
 from kgn_bench.gripper import GRIPPER, GripperGeometry
+from kgn_bench.resources import arm_xml
 from kgn_bench.sim.scene import GROUP_ROBOT
 
 __all__ = [
@@ -44,8 +44,7 @@ __all__ = [
     "robot_only_model",
 ]
 
-ASSETS = Path(__file__).resolve().parents[2] / "assets"
-ARM_XML = ASSETS / "arm7.xml"
+ARM_XML = arm_xml()
 
 ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 FINGER_JOINTS = ("left_finger", "right_finger")

@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from kgn_bench.shapes.base import GeomSpec, Shape
 from kgn_bench.sim.camera import REALSENSE, Intrinsics, convert_camera_frame
@@ -42,10 +43,29 @@ _PROXY_PARK = np.array([0.0, 0.0, 50.0])
 _DIVERGENCE_WARNINGS = np.array(
     [mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC], dtype=int
 )
+_FULL_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_CONTACTFULL, mujoco.mjtWarning.mjWARN_CNSTRFULL], dtype=int)
+"""MuJoCo drops contacts or constraints when the arena is full and only warns: the physics is then wrong."""
 
 
-class PhysicsError(RuntimeError):
-    """The simulation produced non-finite state or objects left the table."""
+ARENA_BASE_MB = 64
+ARENA_MB_PER_GEOM = 2
+"""MuJoCo's arena (contacts, constraints and the solver's stack) is sized from the scene: a base plus a
+share per object collision geom, since the number of contacts grows with the pieces that can touch
+(a pile of five household objects reached 3286 contacts and 19718 constraint rows, more than the default
+13.6 MB arena holds). Linux commits the arena's pages only when used, so a large one costs nothing."""
+
+
+class PhysicsError(KGNBenchError, RuntimeError):
+    """The simulation produced non-finite state, objects left the table, or MuJoCo stopped with a fatal error."""
+
+
+def _fatal_message(e: Exception, time: float) -> str:
+    return f"MuJoCo stopped at t = {time:.3f} s: {str(e).strip().splitlines()[0]}"
+
+
+def arena_megabytes(objects: list[SceneObject]) -> float:
+    """The arena of a scene holding ``objects``: ``ARENA_BASE_MB + ARENA_MB_PER_GEOM × collision geoms``."""
+    return ARENA_BASE_MB + ARENA_MB_PER_GEOM * sum(len(o.shape.collision_geoms()) for o in objects)
 
 
 @dataclass
@@ -94,6 +114,7 @@ def build_mjcf(objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE) -
     root.option.integrator = "implicitfast"
     root.option.cone = "elliptic"
     root.option.impratio = 10
+    root.size.memory = f"{round(arena_megabytes(objects) * 1024)}K"
     vis_global = getattr(root.visual, "global")
     vis_global.offwidth = intrinsics.width
     vis_global.offheight = intrinsics.height
@@ -178,7 +199,7 @@ class Scene:
         self.collision_geoms = np.flatnonzero(m.geom_contype == 1)
         for i, obj in enumerate(objects):
             self.set_object_pose(i, obj.pose)
-        mujoco.mj_forward(m, self.data)
+        self.forward()
 
     # -- object state -------------------------------------------------------------------------
     def set_object_pose(self, i: int, pose: np.ndarray) -> None:
@@ -223,17 +244,29 @@ class Scene:
         """Advance physics ``n`` steps; raises ``PhysicsError`` if the state diverged.
 
         MuJoCo resets the state itself when it meets NaN or huge values, counting a BADQPOS, BADQVEL or
-        BADQACC warning; any new such warning (or a non-finite state) is a blow-up.
+        BADQACC warning; any new such warning (or a non-finite state) is a blow-up. A full arena (contacts
+        or constraints dropped: CONTACTFULL, CNSTRFULL) and a MuJoCo fatal error are ``PhysicsError`` too.
         """
         warnings = self.data.warning.number[_DIVERGENCE_WARNINGS].copy()
-        mujoco.mj_step(self.model, self.data, nstep=n)
+        full = self.data.warning.number[_FULL_WARNINGS].copy()
+        try:
+            mujoco.mj_step(self.model, self.data, nstep=n)
+        except mujoco.FatalError as e:
+            raise PhysicsError(_fatal_message(e, self.data.time)) from None
+        if np.any(self.data.warning.number[_FULL_WARNINGS] > full):
+            raise PhysicsError(f"MuJoCo's arena ({self.model.narena / 2**20:.0f} MB) is full at t = "
+                               f"{self.data.time:.3f} s: contacts were dropped")
         if np.any(self.data.warning.number[_DIVERGENCE_WARNINGS] > warnings) or not (
             np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel))
         ):
             raise PhysicsError(f"simulation diverged (non-finite or huge state) at t = {self.data.time:.3f} s")
 
     def forward(self) -> None:
-        mujoco.mj_forward(self.model, self.data)
+        """Recompute the derived state (kinematics, contacts, forces); ``PhysicsError`` on a MuJoCo fatal error."""
+        try:
+            mujoco.mj_forward(self.model, self.data)
+        except mujoco.FatalError as e:
+            raise PhysicsError(_fatal_message(e, self.data.time)) from None
 
     # -- camera -------------------------------------------------------------------------------
     def set_camera_pose(self, pose_cv: np.ndarray) -> None:

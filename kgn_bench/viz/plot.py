@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from kgn_bench.data.format import atomic_write
+from kgn_bench.io import atomic_write
 
 __all__ = [
     "LEGEND_LOCATIONS",

@@ -45,8 +45,10 @@ import mujoco
 import numpy as np
 import rerun as rr
 
+from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import backproject
 from kgn_bench.gripper import GRIPPER
+from kgn_bench.io import atomic_write
 
 __all__ = [
     "APPLICATION_ID",
@@ -54,12 +56,17 @@ __all__ = [
     "STEM_LENGTH",
     "TIMELINE",
     "Recorder",
+    "RecordingError",
+    "copy_recording",
     "gripper_sketch",
     "merge_recordings",
     "open_viewer",
     "rerun_command",
     "sanitize_path_part",
     "score_colors",
+    "serve_web",
+    "stop_server",
+    "web_viewer_url",
 ]
 
 APPLICATION_ID = "kgn-bench"
@@ -84,6 +91,10 @@ _ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 
 
 # -- pure helpers ---------------------------------------------------------------------------------
+class RecordingError(KGNBenchError, RuntimeError):
+    """A recording that cannot be written, merged, copied or served."""
+
+
 def sanitize_path_part(name: str) -> str:
     """A rerun entity-path part made of ``[A-Za-z0-9_-]`` only: other characters (``/``, spaces …) become ``_``."""
     return re.sub(r"[^A-Za-z0-9_\-]", "_", name)
@@ -247,7 +258,7 @@ class Recorder:
         """Open ``path`` for writing (its parent must exist); ``name`` becomes the recording id and name."""
         path = Path(path)
         if not path.parent.is_dir():
-            raise FileNotFoundError(f"cannot write recording {path}: directory {path.parent} does not exist")
+            raise RecordingError(f"cannot write recording {path}: directory {path.parent} does not exist")
         if not name:
             raise ValueError("recording name must be non-empty")
         self.path = path
@@ -467,15 +478,20 @@ class Recorder:
         self._stream.flush()
 
     def close(self) -> None:
-        """Send buffered states, flush and close the file. Idempotent."""
+        """Send buffered states, flush and close the file. Idempotent. ``RecordingError`` naming the file if
+        rerun could not write it (a full disk stops rerun's file-writer thread)."""
         if self._closed:
             return
         try:
             self._send_states()
             self._stream.flush()
+        except (RuntimeError, OSError) as e:
+            raise RecordingError(f"cannot write recording {self.path}: {str(e).strip().splitlines()[0]}") from None
         finally:
             self._stream.disconnect()
             self._closed = True
+        if not self.path.is_file():
+            raise RecordingError(f"cannot write recording {self.path}: the file was not created")
 
 
 # -- files and viewer -----------------------------------------------------------------------------
@@ -522,13 +538,85 @@ def merge_recordings(parts: list[Path], out: Path) -> None:
         if proc.returncode != 0 or tmp.stat().st_size == 0:
             log = _ANSI_ESCAPE.sub("", proc.stderr or proc.stdout or "")
             tail = "\n".join(log.strip().splitlines()[-10:])
-            raise RuntimeError(
-                f"merging {len(parts)} recordings into {out} failed (rerun rrd merge exit {proc.returncode}); "
-                f"inputs: {', '.join(map(str, parts))}\n{tail}"
-            )
+            last = tail.splitlines()[-1] if tail else "no message"
+            names = ", ".join(p.name for p in parts[:5]) + (", ..." if len(parts) > 5 else "")
+            raise RecordingError(f"merging {len(parts)} recordings ({names}) into {out} failed (rerun rrd merge "
+                                 f"exit {proc.returncode}: {last})")
         os.replace(tmp, out)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def copy_recording(path: Path, dest: Path) -> None:
+    """Copy a recording to ``dest`` atomically (``OutputError`` naming ``dest`` if it cannot be written)."""
+    with open(path, "rb") as src:
+        atomic_write(dest, lambda f: shutil.copyfileobj(src, f, 1 << 20))
+
+
+def web_viewer_url(port: int) -> str:
+    """The address that opens the web viewer on ``port`` connected to the recording's server on ``port + 1``."""
+    return f"http://127.0.0.1:{port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{port + 1}%2Fproxy"
+
+
+def serve_web(path: Path, port: int = 9090, wait: bool = True) -> subprocess.Popen:
+    """Serve ``path`` to a browser from this machine: rerun's own web viewer (shipped in the rerun-sdk wheel,
+    no internet needed) over HTTP on 127.0.0.1:``port``, and the recording over gRPC on ``port + 1``. Prints
+    the address to open (on a headless server, forward the two ports, e.g. ``ssh -L 9090:localhost:9090 -L
+    9091:localhost:9091 host``). With ``wait`` it serves until interrupted; otherwise it returns the server
+    process (stop it with ``stop_server``). ``RecordingError`` if the server does not start (a port in use, a
+    broken recording)."""
+    import socket
+    import time
+
+    for p in (port, port + 1):
+        with socket.socket() as sock:
+            if sock.connect_ex(("127.0.0.1", p)) == 0:
+                raise RecordingError(f"port {p} on 127.0.0.1 is in use; choose another with --port")
+    cmd = [*rerun_command(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
+           "--port", str(port + 1), str(path)]
+    env = {**os.environ, "RERUN_ANALYTICS": "false"}
+    log = tempfile.TemporaryFile()
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env, start_new_session=True)
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            log.seek(0)
+            err = _ANSI_ESCAPE.sub("", log.read().decode(errors="replace"))
+            last = err.strip().splitlines()[-1] if err.strip() else f"exit {proc.returncode}"
+            raise RecordingError(f"the rerun web viewer did not start: {last}")
+        with socket.socket() as sock:
+            if sock.connect_ex(("127.0.0.1", port)) == 0:
+                break
+        time.sleep(0.1)
+    else:
+        stop_server(proc)
+        raise RecordingError(f"the rerun web viewer did not answer on port {port} within 20 s")
+    print(f"serving {path}: open {web_viewer_url(port)}", flush=True)
+    if not wait:
+        return proc
+    try:
+        proc.wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        stop_server(proc)
+    return proc
+
+
+def stop_server(proc: subprocess.Popen) -> None:
+    """Stop a server started in its own session and everything it started (the ``rerun`` launcher runs the
+    viewer binary as a child)."""
+    import signal
+
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+    except ProcessLookupError:
+        return
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
 
 
 def open_viewer(path: Path) -> None:

@@ -1,0 +1,20 @@
+"""The recorded environment: the versions that can move an outcome."""
+
+from importlib.metadata import version
+
+from kgn_bench.environment import OUTCOME_PACKAGES, environment, environment_differences
+
+
+def test_environment_records_every_outcome_package():
+    env = environment()
+    assert set(env["packages"]) == set(OUTCOME_PACKAGES)
+    assert env["packages"]["mujoco"] == version("mujoco") and env["packages"]["torch"] == version("torch")
+    assert env["python"].count(".") == 2
+
+
+def test_environment_differences_names_what_moved():
+    a = environment()
+    assert environment_differences(a, a) == []
+    b = {**a, "packages": {**a["packages"], "opencv-python-headless": "4.14.0"}}
+    (line,) = environment_differences(a, b)
+    assert line.startswith("opencv-python-headless ") and line.endswith("→ 4.14.0")
