@@ -92,7 +92,7 @@ def _cmd_data_generate(args) -> int:
 
 def _cmd_data_show(args) -> int:
     from kgn_bench.viz.draw import show_view
-    from kgn_bench.viz.plot import save_png
+    from kgn_bench.viz.images import save_png
 
     _writable_file(args.out, "image")
     save_png(args.out, show_view(args.dir, args.scene, args.view, box=args.box))
@@ -282,7 +282,7 @@ def _cmd_perf_detector(args) -> int:
 def _cmd_eval_show(args) -> int:
     from kgn_bench.detectors.kgn import KGNDetector
     from kgn_bench.viz.draw import show_predictions
-    from kgn_bench.viz.plot import save_png
+    from kgn_bench.viz.images import save_png
 
     _writable_file(args.out, "image")
     detector = KGNDetector(args.variant, args.weights)

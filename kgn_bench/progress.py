@@ -1,44 +1,59 @@
-"""A minimal progress line on stderr (a carriage-return bar on a terminal, sparse lines otherwise)."""
+"""Progress bars: tqdm on stderr, with the running rates as its postfix.
+
+On a terminal the bar redraws in place; when stderr is a file or a pipe (a log, CI) tqdm's redraws become
+one line every ``LOG_INTERVAL`` seconds instead of carriage returns, so a log stays readable. A disabled bar
+(``--quiet``) prints nothing.
+"""
 
 from __future__ import annotations
 
 import sys
-import time
+from typing import TextIO
 
-__all__ = ["Progress"]
+from tqdm import tqdm
+
+__all__ = ["LOG_INTERVAL", "Progress"]
+
+LOG_INTERVAL = 10.0
+"""Seconds between progress lines when stderr is not a terminal."""
+
+
+class _Lines:
+    """A stream for tqdm that turns each redraw (``\\r`` + status) into a line of its own."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+
+    def write(self, text: str) -> None:
+        text = text.replace("\r", "")
+        if text.strip():
+            self.stream.write(text.rstrip("\n") + "\n")
+
+    def flush(self) -> None:
+        self.stream.flush()
 
 
 class Progress:
-    """``done/total``, rate and ETA for a loop; ``update(n, extra)`` after each finished item."""
+    """A bar over ``total`` items; ``update(n, extra)`` after each finished item (``extra``: the running
+    rates, shown as tqdm's postfix); ``close()`` (or the last item) ends it."""
 
-    def __init__(self, total: int, label: str, unit: str = "it", stream=None, enabled: bool = True) -> None:
-        self.total, self.label, self.unit = total, label, unit
-        self.stream = stream or sys.stderr
-        self.enabled = enabled and total > 0
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+    def __init__(self, total: int, label: str, unit: str = "it", stream: TextIO | None = None,
+                 enabled: bool = True) -> None:
+        stream = stream or sys.stderr
+        tty = bool(getattr(stream, "isatty", lambda: False)())
+        self.total = total
+        self._bar = tqdm(total=total, desc=label, unit=unit, disable=not enabled or total <= 0,
+                         file=stream if tty else _Lines(stream), mininterval=0.2 if tty else LOG_INTERVAL,
+                         dynamic_ncols=tty, ncols=None if tty else 120, leave=True)
         self.done = 0
-        self.start = time.perf_counter()
-        self._last_print = 0.0
 
     def update(self, n: int = 1, extra: str = "") -> None:
         self.done += n
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        final = self.done >= self.total
-        if not final and now - self._last_print < (0.2 if self.tty else 10.0):
-            return
-        self._last_print = now
-        elapsed = now - self.start
-        rate = self.done / elapsed if elapsed > 0 else 0.0
-        eta = (self.total - self.done) / rate if rate > 0 else float("inf")
-        width = 24
-        filled = int(width * self.done / self.total)
-        bar = "#" * filled + "-" * (width - filled)
-        line = (f"{self.label} [{bar}] {self.done}/{self.total} {rate:.2f} {self.unit}/s "
-                f"elapsed {elapsed:.0f}s eta {eta:.0f}s {extra}")
-        if self.tty:
-            self.stream.write("\r" + line + ("\n" if final else ""))
-        else:
-            self.stream.write(line + "\n")
-        self.stream.flush()
+        if extra:
+            self._bar.set_postfix_str(extra, refresh=False)
+        self._bar.update(n)
+        if self.done >= self.total:
+            self.close()
+
+    def close(self) -> None:
+        self._bar.close()

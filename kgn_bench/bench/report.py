@@ -243,21 +243,18 @@ def _per_object_lines(per_object: dict[str, dict[str, dict[str, Any]]], protocol
 
 
 def _chart(detectors: list[str], columns: list[Column], rate, path: Path) -> None:
-    from kgn_bench.viz.plot import PALETTE_RGB, Bar, bar_chart, save_png
+    """The grouped bar chart: one group per column, one bar per detector, Wilson 95 % whiskers."""
+    import numpy as np
 
-    bars = []
-    for c in columns:
-        row = []
-        for det in detectors:
+    from kgn_bench.viz.figures import bar_chart, save_figure
+
+    shape = (len(columns), len(detectors))
+    values, lows, highs = np.full(shape, np.nan), np.full(shape, np.nan), np.full(shape, np.nan)
+    for g, c in enumerate(columns):
+        for j, det in enumerate(detectors):
             r = rate(det, c)
-            if r is None:
-                row.append(None)
-                continue
-            lo, hi = r.interval
-            row.append(Bar(100 * r.value, 100 * lo, 100 * hi, f"{100 * r.value:.0f}"))
-        bars.append(row)
-    width = max(900, 160 * len(columns) + 200)
-    image = bar_chart([c.label for c in columns], detectors, bars, PALETTE_RGB[: max(1, len(detectors))],
-                      title="KGN-Bench closed loop: success / clear rate with Wilson 95 % intervals",
-                      ylabel="rate (%)", size=(width, 520), ylim=(0.0, 105.0))
-    save_png(path, image)
+            if r is not None and r.n:
+                values[g, j], (lows[g, j], highs[g, j]) = 100 * r.value, (100 * x for x in r.interval)
+    fig = bar_chart([c.label for c in columns], detectors, values, lows, highs,
+                    title="KGN-Bench closed loop: success / clear rate with Wilson 95 % intervals", ylabel="rate (%)")
+    save_figure(fig, path)

@@ -150,45 +150,37 @@ def rows_to_csv(rows: list[PnpNoiseRow]) -> str:
     return buf.getvalue()
 
 
-def plot_pnp_noise(rows: list[PnpNoiseRow], statistic: str = "mean") -> np.ndarray:
-    """Fig. 2 as an RGB image: rotation (left) and translation (right) error against camera distance, one
-    colour per σ, solid for the fixed box and dashed for the scale-normalised one; ``statistic`` is
-    ``mean`` (the paper's) or ``median``."""
-    from kgn_bench.viz.plot import PALETTE_RGB, Series, hstack, line_panel
+def plot_pnp_noise(rows: list[PnpNoiseRow], statistic: str = "mean"):
+    """Fig. 2 as a matplotlib figure: rotation (left) and translation (right) error against camera distance,
+    one colour per σ, solid for the fixed box and dashed for the scale-normalised one, log scale;
+    ``statistic`` is ``mean`` (the paper's) or ``median``."""
+    from kgn_bench.viz.figures import Line, Panel, line_panels
 
     if statistic not in ("mean", "median"):
         raise ValueError(f"statistic must be mean or median, got {statistic!r}")
     sigmas = sorted({r.sigma_px for r in rows})
     panels = []
-    for quantity, unit, ylabel in (("rot", "deg", "rotation error (deg)"), ("trans", "cm", "translation error (cm)")):
-        series = []
+    for quantity, unit, ylabel in (("rot", "deg", "rotation error (°)"), ("trans", "cm", "translation error (cm)")):
+        lines = []
         for i, sigma in enumerate(sigmas):
             for box in BOXES:
                 cell = sorted((r for r in rows if r.box == box and r.sigma_px == sigma), key=lambda r: r.distance_m)
-                name = "fixed box" if box == "fixed" else "scale-normalised"
-                series.append(
-                    Series(
-                        label=f"{name}, sigma {sigma:g} px",
-                        x=tuple(r.distance_m for r in cell),
-                        y=tuple(getattr(r, f"{quantity}_{statistic}_{unit}") for r in cell),
-                        color=PALETTE_RGB[i % len(PALETTE_RGB)],
-                        dashed=box != "fixed",
-                    )
-                )
-        panels.append(
-            line_panel(series, title=f"{statistic} {ylabel.split(' (')[0]} vs distance (IPPE)",
-                       xlabel="camera distance (m)", ylabel=ylabel, size=(640, 480), log_y=True)
-        )
-    return hstack(panels, gap=10)
+                name = "fixed 0.1 m box" if box == "fixed" else "scale-normalised box"
+                lines.append(Line(f"{name}, σ = {sigma:g} px", [r.distance_m for r in cell],
+                                  [getattr(r, f"{quantity}_{statistic}_{unit}") for r in cell], color=i,
+                                  dashed=box != "fixed"))
+        panels.append(Panel(f"{statistic} {ylabel.split(' (')[0]} vs distance (IPPE)", "camera distance (m)", ylabel,
+                            lines, log_y=True))
+    return line_panels(panels)
 
 
 def write_pnp_noise(rows: list[PnpNoiseRow], out: Path) -> list[Path]:
     """Write ``out``.csv (all rows) and ``out``.png (the mean-error figure); returns the paths."""
-    from kgn_bench.viz.plot import save_png
+    from kgn_bench.viz.figures import save_figure
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     csv_path, png_path = out.with_suffix(".csv"), out.with_suffix(".png")
     atomic_write_text(csv_path, rows_to_csv(rows))
-    save_png(png_path, plot_pnp_noise(rows))
+    save_figure(plot_pnp_noise(rows), png_path)
     return [csv_path, png_path]

@@ -240,6 +240,7 @@ def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | N
         figs = "; ".join(f"{label}: GSR {_pct(v['gsr'])} GCR {_pct(v['gcr'])} OSR {_pct(v['osr'])}"
                          for label, v in e["eval"].items())
         lines += [f"| held-out check (epoch {e['epoch']}, {e.get('eval_views', '?')} test views) | {figs} |"]
+    lines += ["", f"![training curves]({name}_training.png)"] if history else []
     lines += ["", "Training curve (per epoch): " + ", ".join(f"{h['epoch']}: {h.get('total', float('nan')):.3f}"
                                                          for h in history)]
     return "\n".join(lines) + "\n"
@@ -251,7 +252,8 @@ def _pct(x: float | None) -> str:
 
 def export_weights(src: Path, name: str, out_dir: Path) -> tuple[Path, Path]:
     """Copy a checkpoint's weights (no optimizer state) to ``out_dir/<name>.pt`` and write the model card
-    ``out_dir/<name>.md``; returns both paths."""
+    ``out_dir/<name>.md`` and its training curves ``out_dir/<name>_training.png``; returns the weights and
+    card paths."""
     data = load_checkpoint(src)
     slim = {k: v for k, v in data.items() if k not in ("optimizer", "torch_rng", "format", "version")}
     slim["model"] = {k: v.to(torch.float32) if v.is_floating_point() else v for k, v in slim["model"].items()}
@@ -260,4 +262,9 @@ def export_weights(src: Path, name: str, out_dir: Path) -> tuple[Path, Path]:
     save_checkpoint(weights, slim)
     card = out_dir / f"{name}.md"
     atomic_write_text(card, model_card(data, name, weights.stat().st_size, file_sha256(weights)))
+    if data.get("history"):
+        from kgn_bench.viz.figures import save_figure, training_figure
+
+        save_figure(training_figure(data["history"], f"{name}: {data.get('train', {}).get('name', '')}"),
+                    out_dir / f"{name}_training.png")
     return weights, card

@@ -10,7 +10,7 @@ import numpy as np
 from kgn_bench.data.format import SceneAnnotation, read_view, scene_dir
 from kgn_bench.geometry import invert_pose, project
 from kgn_bench.grasp import KEYPOINT_LINKS, keypoints_in_frame
-from kgn_bench.viz.plot import PALETTE_RGB
+from kgn_bench.viz.images import PALETTE_RGB
 
 __all__ = ["PALETTE", "colorize_depth", "draw_grasps", "draw_keypoints", "show_predictions", "show_view"]
 

@@ -542,6 +542,7 @@ def merge_recordings(parts: list[Path], out: Path) -> None:
             names = ", ".join(p.name for p in parts[:5]) + (", ..." if len(parts) > 5 else "")
             raise RecordingError(f"merging {len(parts)} recordings ({names}) into {out} failed (rerun rrd merge "
                                  f"exit {proc.returncode}: {last})")
+        os.chmod(tmp, 0o644)  # mkstemp creates 0600; a recording is read like any result
         os.replace(tmp, out)
     finally:
         tmp.unlink(missing_ok=True)
@@ -594,12 +595,19 @@ def serve_web(path: Path, port: int = 9090, wait: bool = True) -> subprocess.Pop
     print(f"serving {path}: open {web_viewer_url(port)}", flush=True)
     if not wait:
         return proc
+    import signal
+
+    def terminate(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)  # a `kill` stops the server too, not only Ctrl-C
     try:
         proc.wait()
     except KeyboardInterrupt:
         pass
     finally:
         stop_server(proc)
+        signal.signal(signal.SIGTERM, previous)
     return proc
 
 

@@ -1,0 +1,140 @@
+"""Figures with matplotlib (the Agg renderer; no display, no global pyplot state): the benchmark's bar
+chart with interval whiskers, line panels (the PnP-noise study) and training curves, saved atomically.
+
+Figures are built with ``matplotlib.figure.Figure`` directly, sized for a paper column or page at 150 dpi,
+and take any Unicode in their labels (DejaVu Sans, matplotlib's own font).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from kgn_bench.io import atomic_write
+
+__all__ = ["DPI", "Line", "Panel", "bar_chart", "line_panels", "save_figure", "training_figure"]
+
+DPI = 150
+"""Resolution of saved figures."""
+
+
+@dataclass(frozen=True)
+class Line:
+    """One series of a line panel; ``color`` indexes matplotlib's tab10 cycle."""
+
+    label: str
+    x: Sequence[float]
+    y: Sequence[float]
+    color: int = 0
+    dashed: bool = False
+
+
+@dataclass(frozen=True)
+class Panel:
+    """One axes of ``line_panels``."""
+
+    title: str
+    xlabel: str
+    ylabel: str
+    lines: Sequence[Line] = field(default_factory=tuple)
+    log_y: bool = False
+
+
+def _tab10(i: int) -> str:
+    return f"C{i % 10}"
+
+
+def save_figure(fig: Figure, path: str | os.PathLike[str]) -> None:
+    """Render ``fig`` to PNG and write it atomically to ``path`` (``kgn_bench.io.atomic_write``)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    atomic_write(path, lambda f: f.write(buf.getvalue()))
+
+
+def bar_chart(groups: Sequence[str], series: Sequence[str], values: np.ndarray, lows: np.ndarray,
+              highs: np.ndarray, *, title: str, ylabel: str, ylim: tuple[float, float] = (0.0, 105.0)) -> Figure:
+    """Grouped bars: ``values`` (G, S) for G groups on the x axis and S series (one colour each), with
+    whiskers from ``lows`` to ``highs`` (e.g. Wilson 95 % intervals) and the value printed above each bar.
+    NaN values leave a gap (a detector that has no run for that column)."""
+    values, lows, highs = (np.asarray(a, dtype=float) for a in (values, lows, highs))
+    if values.shape != (len(groups), len(series)) or lows.shape != values.shape or highs.shape != values.shape:
+        raise ValueError(f"values, lows and highs must be ({len(groups)}, {len(series)})")
+    fig = Figure(figsize=(max(6.5, 1.25 * len(groups) + 2.0), 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    width = 0.8 / max(1, len(series))
+    x = np.arange(len(groups))
+    for j, name in enumerate(series):
+        ok = np.isfinite(values[:, j])
+        xs = x[ok] + (j - (len(series) - 1) / 2) * width
+        v = values[ok, j]
+        err = np.vstack([v - lows[ok, j], highs[ok, j] - v])
+        ax.bar(xs, v, width * 0.92, label=name, color=_tab10(j), yerr=err, capsize=2,
+               error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
+        for xi, vi in zip(xs, v):
+            ax.text(xi, min(vi, ylim[1] - 6), f"{vi:.0f}", ha="center", va="bottom", fontsize=6)
+    ax.set_xticks(x, groups, fontsize=8)
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(*ylim)
+    ax.set_title(title, fontsize=10)
+    ax.grid(axis="y", color="0.9")
+    ax.set_axisbelow(True)
+    ax.legend(fontsize=7, ncols=min(len(series), 6), loc="lower center", bbox_to_anchor=(0.5, 1.08),
+              frameon=False)
+    return fig
+
+
+def line_panels(panels: Sequence[Panel], *, suptitle: str | None = None) -> Figure:
+    """Side-by-side axes, one per ``Panel``, each with its own legend."""
+    fig = Figure(figsize=(4.2 * len(panels), 3.4), layout="constrained")
+    axes = fig.subplots(1, len(panels), squeeze=False)[0]
+    for ax, panel in zip(axes, panels):
+        for line in panel.lines:
+            ax.plot(line.x, line.y, color=_tab10(line.color), linestyle="--" if line.dashed else "-",
+                    marker="o", markersize=2.5, linewidth=1.2, label=line.label)
+        if panel.log_y:
+            ax.set_yscale("log")
+        ax.set_title(panel.title, fontsize=9)
+        ax.set_xlabel(panel.xlabel)
+        ax.set_ylabel(panel.ylabel)
+        ax.grid(color="0.9", which="both")
+        if panel.lines:
+            ax.legend(fontsize=6)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=10)
+    return fig
+
+
+def training_figure(history: Sequence[dict[str, Any]], title: str) -> Figure:
+    """Training curves from a run's ``history``: the mean losses per epoch (log scale) on the left, the
+    held-out GSR / GCR / OSR at each evaluated epoch and threshold on the right."""
+    fig = Figure(figsize=(9.0, 3.4), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    epochs = [h["epoch"] for h in history]
+    for i, key in enumerate(("total", "hm", "reg", "kpts", "width", "scale")):
+        ys = [h.get(key) for h in history]
+        if any(y is not None for y in ys):
+            left.plot(epochs, [np.nan if y is None else y for y in ys], color=_tab10(i), label=key, linewidth=1.2)
+    left.set_yscale("log")
+    left.set(xlabel="epoch", ylabel="mean loss", title="training loss")
+    left.grid(color="0.9", which="both")
+    left.legend(fontsize=6, ncols=2)
+    evals = [h for h in history if isinstance(h.get("eval"), dict)]
+    styles = {"gsr": "-", "gcr": "--", "osr": ":"}
+    for t, label in enumerate(evals[0]["eval"] if evals else ()):
+        for metric, style in styles.items():
+            ys = [h["eval"].get(label, {}).get(metric) for h in evals]
+            right.plot([h["epoch"] for h in evals], [np.nan if y is None else 100 * y for y in ys],
+                       color=_tab10(t), linestyle=style, marker="o", markersize=2.5, label=f"{metric.upper()} {label}")
+    views = evals[-1].get("eval_views", "?") if evals else "?"
+    right.set(xlabel="epoch", ylabel="%", ylim=(0, 100), title=f"held-out ({views} test views)")
+    right.grid(color="0.9")
+    if evals:
+        right.legend(fontsize=5, ncols=3)
+    fig.suptitle(title, fontsize=10)
+    return fig

@@ -1,0 +1,48 @@
+"""matplotlib figures: real PNGs of the expected size, Unicode labels, gaps for missing cells."""
+
+import cv2
+import numpy as np
+import pytest
+
+from kgn_bench.viz.figures import DPI, Line, Panel, bar_chart, line_panels, save_figure, training_figure
+
+
+def _read(path):
+    img = cv2.imread(str(path))
+    assert img is not None
+    return img
+
+
+def test_bar_chart_with_whiskers_and_a_gap(tmp_path):
+    values = np.array([[96.7, 99.2], [np.nan, 95.0]])
+    fig = bar_chart(["single, primitives", "σ-clutter · clear"], ["kgnv2", "antipodal"], values, values - 3,
+                    np.minimum(values + 2, 100), title="success with Wilson 95 % intervals", ylabel="rate (%)")
+    ax = fig.axes[0]
+    assert len(ax.patches) == 3  # the NaN cell leaves a gap
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["single, primitives", "σ-clutter · clear"]
+    save_figure(fig, tmp_path / "b.png")
+    h, w = _read(tmp_path / "b.png").shape[:2]
+    assert (w, h) == (round(fig.get_figwidth() * DPI), round(fig.get_figheight() * DPI))
+    assert [p.name for p in tmp_path.iterdir()] == ["b.png"]  # written atomically, nothing left over
+    with pytest.raises(ValueError, match="must be"):
+        bar_chart(["a"], ["x", "y"], np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), title="", ylabel="")
+
+
+def test_line_panels_log_scale(tmp_path):
+    panels = [Panel("rotation", "d (m)", "error (°)", [Line("σ = 2 px", [0.3, 1.0], [0.5, 2.0], dashed=True)],
+                    log_y=True), Panel("translation", "d (m)", "cm", [Line("a", [0, 1], [1, 2], color=3)])]
+    fig = line_panels(panels)
+    assert [a.get_yscale() for a in fig.axes] == ["log", "linear"]
+    assert fig.axes[0].lines[0].get_linestyle() == "--"
+    save_figure(fig, tmp_path / "l.png")
+    assert _read(tmp_path / "l.png").std() > 5  # not blank
+
+
+def test_training_figure_plots_losses_and_held_out_metrics():
+    history = [{"epoch": e, "total": 4.0 / e, "hm": 2.0 / e} for e in range(1, 4)]
+    history[2]["eval"] = {"1 cm / 20°": {"gsr": 0.4, "gcr": 0.2, "osr": 0.7}}
+    history[2]["eval_views"] = 50
+    fig = training_figure(history, "kgnv2")
+    left, right = fig.axes
+    assert [line.get_label() for line in left.lines] == ["total", "hm"]
+    assert len(right.lines) == 3 and right.lines[0].get_ydata()[0] == pytest.approx(40.0)
