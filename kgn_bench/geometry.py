@@ -1,4 +1,4 @@
-"""Rigid-body geometry: rotations, homogeneous poses, pinhole projection.
+"""Rigid-body geometry: rotations (scipy.spatial.transform), homogeneous poses, pinhole projection.
 
 Conventions (DESIGN §4): metres and radians; a pose ``T_a_b`` is a 4×4 homogeneous matrix that maps
 points expressed in frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``). Rotation matrices act on
@@ -9,10 +9,12 @@ column vectors. Pixel coordinates follow OpenCV: pixel ``(u, v)`` has its centre
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 __all__ = [
     "axis_align",
     "backproject",
+    "backproject_strided",
     "invert_pose",
     "make_pose",
     "matrix_from_quat_wxyz",
@@ -124,55 +126,30 @@ def backproject(depth: np.ndarray, K: np.ndarray) -> np.ndarray:
     return np.stack([x, y, z], axis=-1)
 
 
+def backproject_strided(depth: np.ndarray, K: np.ndarray, stride: int) -> np.ndarray:
+    """Back-project every ``stride``-th pixel of ``depth`` (rows and columns), (H', W', 3) camera-frame
+    points. Pixel ``(u', v')`` of the subsampled image is pixel ``(s·u', s·v')`` of the full one, so its
+    intrinsics are ``diag(1/s, 1/s, 1) · K``."""
+    Ks = np.diag([1.0 / stride, 1.0 / stride, 1.0]) @ K
+    return backproject(depth[::stride, ::stride], Ks)
+
+
 def quat_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z), w ≥ 0, of a rotation matrix (Shepperd's method)."""
-    m = np.asarray(R, dtype=float)
-    tr = np.trace(m)
-    if tr > 0.0:
-        s = 2.0 * np.sqrt(tr + 1.0)
-        q = np.array([0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s])
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = np.empty(4)
-        q[0] = (m[k, j] - m[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (m[j, i] + m[i, j]) / s
-        q[1 + k] = (m[k, i] + m[i, k]) / s
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0.0 else -q
+    """Unit quaternion (w, x, y, z), w ≥ 0 (MuJoCo's order), of a rotation matrix (scipy)."""
+    q = Rotation.from_matrix(np.asarray(R, dtype=float)).as_quat(canonical=True, scalar_first=True)
+    return q / np.linalg.norm(q)
 
 
 def matrix_from_quat_wxyz(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a quaternion (w, x, y, z); the quaternion is normalised first."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """Rotation matrix of a quaternion (w, x, y, z); the quaternion is normalised first (scipy)."""
+    return Rotation.from_quat(np.asarray(q, dtype=float), scalar_first=True).as_matrix()
 
 
 def matrix_from_rotvec(w: np.ndarray) -> np.ndarray:
-    """Rotation matrix of the rotation vector ``w`` (axis · angle, rad), by Rodrigues' formula."""
-    w = np.asarray(w, dtype=float)
-    theta = float(np.linalg.norm(w))
-    if theta < 1e-12:
-        return np.eye(3)
-    k = w / theta
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(theta) * K + (1.0 - np.cos(theta)) * (K @ K)
+    """Rotation matrix of the rotation vector ``w`` (axis · angle, rad): ``exp([w]×)`` (scipy)."""
+    return Rotation.from_rotvec(np.asarray(w, dtype=float)).as_matrix()
 
 
 def rotvec_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis · angle, angle in [0, π]) of the rotation matrix ``R``."""
-    q = quat_wxyz_from_matrix(R)
-    if q[0] < 0:
-        q = -q
-    s = float(np.linalg.norm(q[1:]))
-    if s < 1e-12:
-        return np.zeros(3)
-    return q[1:] / s * 2.0 * np.arctan2(s, q[0])
+    """Rotation vector (axis · angle, angle in [0, π]) of the rotation matrix ``R``: ``log(R)`` (scipy)."""
+    return Rotation.from_matrix(np.asarray(R, dtype=float)).as_rotvec()

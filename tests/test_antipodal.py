@@ -209,7 +209,7 @@ def test_lowest_box_z_matches_the_swept_box_corners():
         back = np.array([0.05, 0.0, 0.0])  # half of the 0.1 m pre-grasp sweep
         swept = [GripperBox(b.name, b.centre - back, b.half + back) for b in boxes]
         want[k] = min(box_corners(b, poses[k:k + 1])[0, :, 2].min() for b in swept)
-    np.testing.assert_allclose(_lowest_box_z(oz, R, w_open), want, atol=1e-12)
+    np.testing.assert_allclose(_lowest_box_z(oz, R, w_open, 0.1), want, atol=1e-12)
 
 
 def test_extent_stops_at_gaps_a_finger_fits_into():

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from kgn_bench.detectors import DETECTORS, Candidates, Detector, DetectorError, Observation, make_detector
-from kgn_bench.detectors.oracle import TILT_DEG, OracleDetector, on_table, tilted
+from kgn_bench.detectors.oracle import TILT_DEG, OracleDetector, tilted
 from kgn_bench.detectors.random import RandomDetector
 from kgn_bench.geometry import make_pose, rot_z
 from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
@@ -15,7 +15,7 @@ from kgn_bench.sim.camera import REALSENSE, orbit_pose
 from kgn_bench.sim.collision import proxy_hits_table
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.render import SceneRenderer
-from kgn_bench.sim.robot import BIN, PARK_Q, add_workcell
+from kgn_bench.sim.robot import BIN, PARK_Q, add_workcell, on_table
 from kgn_bench.sim.scene import Scene, SceneObject
 
 H, W = REALSENSE.height, REALSENSE.width

@@ -361,3 +361,18 @@ def test_learned_detector_trials_are_identical_whatever_the_worker_count(tmp_pat
                                   key=lambda r: r["index"])
     assert len(records[1]) == 6 and records[1] == records[2]
     assert (tmp_path / "w1" / "summary.json").read_text() == (tmp_path / "w2" / "summary.json").read_text()
+
+
+def test_the_tasks_execution_settings_reach_the_detectors(tmp_path):
+    """--set execution.pregrasp_distance=0.15 changes the antipodal clearance sweep and the oracle's body check."""
+    from kgn_bench.bench.trial import run_trial
+    from kgn_bench.config import apply_override
+    from kgn_bench.detectors import make_detector
+    from kgn_bench.sim.control import IK
+
+    task = apply_override(replace(load_task(_small_task(tmp_path)), trials=1), "execution.pregrasp_distance", "0.15")
+    ik = IK()
+    for name in ("antipodal", "oracle"):
+        detector = make_detector(name)
+        run_trial(task, 0, detector, ik)
+        assert getattr(detector, "pregrasp_distance", getattr(detector, "approach", None)) == 0.15, name

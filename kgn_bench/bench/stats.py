@@ -1,6 +1,6 @@
 """Rates with Wilson 95 % score intervals, and run summaries built from trial records.
 
-Wilson interval for k successes in n trials, z = 1.96:
+Wilson interval for k successes in n trials, z = 1.96 (``scipy.stats.binomtest(...).proportion_ci``):
 ``(p̂ + z²/2n ± z·sqrt(p̂(1 − p̂)/n + z²/4n²)) / (1 + z²/n)``. Unlike the normal approximation it stays
 inside [0, 1] and is sensible at 0/n and n/n.
 """
@@ -11,25 +11,19 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
+from scipy.stats import binomtest
 
 from .attempt import FAILURE_REASONS
 from .selector import REJECTIONS
 
 __all__ = ["Rate", "per_object_meaning", "summarise", "summary_markdown", "wilson_interval"]
 
-Z95 = 1.959963984540054
-
-
-def wilson_interval(k: int, n: int, z: float = Z95) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion; (0, 1) when n = 0."""
+def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (scipy); (0, 1) when n = 0."""
     if n == 0:
         return 0.0, 1.0
-    p = k / n
-    denom = 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
+    ci = binomtest(k, n).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
 
 
 @dataclass(frozen=True)

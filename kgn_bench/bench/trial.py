@@ -22,14 +22,13 @@ import numpy as np
 
 from kgn_bench.config import TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
-from kgn_bench.detectors.oracle import on_table
 from kgn_bench.shapes import shape_class
 from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.depth_noise import DepthNoise
 from kgn_bench.sim.placement import PlacementConfig, place_objects, settle
 from kgn_bench.sim.render import SceneRenderer
-from kgn_bench.sim.robot import PARK_Q, add_workcell
+from kgn_bench.sim.robot import PARK_Q, add_workcell, on_table
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
 
 from .attempt import AttemptResult, execute_grasp
@@ -139,6 +138,9 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     names = [o.shape.name for o in scene.objects]
     placed_names = [name for i, name in enumerate(names) if on_table(scene, i)]
     try:
+        configure = getattr(detector, "configure", None)
+        if configure is not None:  # the task's execution settings (pre-grasp distance, ...) reach the detector
+            configure(task.execution)
         detector.reset([task.seed, index])
         if detector.privileged:
             detector.attach(scene)  # type: ignore[attr-defined]

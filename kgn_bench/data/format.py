@@ -30,7 +30,7 @@ from kgn_bench.errors import KGNBenchError
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes import GraspDensity, shape_from_dims
 from kgn_bench.sim.camera import Intrinsics
-from kgn_bench.sim.render import RGBD
+from kgn_bench.types import RGBD
 
 __all__ = [
     "DEPTH_UNIT",

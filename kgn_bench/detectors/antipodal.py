@@ -42,14 +42,13 @@ import cv2
 import numpy as np
 
 from kgn_bench.config import ExecutionConfig
-from kgn_bench.geometry import backproject, invert_pose
+from kgn_bench.geometry import backproject, backproject_strided, invert_pose
 from kgn_bench.gripper import GRIPPER
 
 from .base import Candidates, Observation
 
 __all__ = ["AntipodalDetector", "estimate_normals"]
 
-_PREGRASP_BACKOFF = ExecutionConfig().pregrasp_distance
 """How far the harness backs off along −approach for the pre-grasp (the default task setting); the clearance
 check sweeps the boxes over it."""
 _BIN = 0.003
@@ -160,7 +159,13 @@ class AntipodalDetector:
         self.min_enclosed = min_enclosed
         self.top = top
         self.chunk = chunk
+        self.pregrasp_distance = ExecutionConfig().pregrasp_distance
         self._rng = np.random.default_rng(0)
+
+    def configure(self, execution: ExecutionConfig) -> None:
+        """Take the task's execution settings: the clearance check sweeps the gripper back from the grasp by
+        the pre-grasp distance the arm will really use."""
+        self.pregrasp_distance = execution.pregrasp_distance
 
     def reset(self, seed: list[int]) -> None:
         self._rng = np.random.default_rng([*seed, 0xA9])
@@ -197,8 +202,7 @@ class AntipodalDetector:
         sub = (slice(r0 // s, r0 // s + n[::s, ::s].shape[0]), slice(c0 // s, c0 // s + n[::s, ::s].shape[1]))
         normals[sub], has_normal[sub], smooth[sub] = n[::s, ::s], ok[::s, ::s], coherent[::s, ::s]
         _, labels = cv2.connectedComponents(obj_s.astype(np.uint8), connectivity=8)
-        Ks = np.diag([1.0 / s, 1.0 / s, 1.0]) @ K
-        pc = backproject(obs.depth[::s, ::s], Ks)[keep]
+        pc = backproject_strided(obs.depth, K, s)[keep]
         return {
             "points": pc @ T[:3, :3].T + T[:3, 3],
             "normals": normals[keep] @ T[:3, :3].T,
@@ -313,7 +317,8 @@ class AntipodalDetector:
         c_mid = 0.5 * (c_hi + c_lo)
         w_open = g.opening(width)
         keep = (a_tip >= a_min + self.min_depth) & (n_enc >= self.min_enclosed)
-        keep &= _lowest_box_z(pz + xz * a_tip + zz * c_mid, R, w_open) >= self.table_clearance - 1e-6
+        lowest = _lowest_box_z(pz + xz * a_tip + zz * c_mid, R, w_open, self.pregrasp_distance)
+        keep &= lowest >= self.table_clearance - 1e-6
         R, seed_of, a, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, w_open, n_enc = _rows(
             keep, R, seed_of, a, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, w_open, n_enc)
 
@@ -321,7 +326,7 @@ class AntipodalDetector:
         u = a - a_tip[:, None]
         at = np.abs(c - c_mid[:, None])
         ab = np.abs(b)
-        eps, back = 0.0015, _PREGRASP_BACKOFF
+        eps, back = 0.0015, self.pregrasp_distance
         hw = (w_open / 2)[:, None]
         hit = (u >= -fl - back - eps) & (u <= self.push + eps) & (ab <= half_b + eps) & \
             (at >= hw - eps) & (at <= hw + g.finger_thickness + eps)
@@ -390,14 +395,14 @@ def _extent(c: np.ndarray, mask: np.ndarray, reach: float) -> tuple[np.ndarray, 
     return np.where(ok, c_lo, np.nan), np.where(ok, c_hi, np.nan)
 
 
-def _lowest_box_z(oz: np.ndarray, R: np.ndarray, w_open: np.ndarray) -> np.ndarray:
-    """Lowest world z of the gripper's fingers (at opening ``w_open``), palm and wrist, swept back the
-    pre-grasp distance, for grasps with origin height ``oz`` and rotations ``R`` (world)."""
+def _lowest_box_z(oz: np.ndarray, R: np.ndarray, w_open: np.ndarray, back: float) -> np.ndarray:
+    """Lowest world z of the gripper's fingers (at opening ``w_open``), palm and wrist, swept ``back`` (the
+    pre-grasp distance) along −x, for grasps with origin height ``oz`` and rotations ``R`` (world)."""
     g = GRIPPER
     xz, yz, zz = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
     lowest = np.full(len(R), np.inf)
     for box in (g.finger_box(1, 0.0), g.palm_box(), g.wrist_box()):
-        ulo = box.centre[0] - box.half[0] - _PREGRASP_BACKOFF
+        ulo = box.centre[0] - box.half[0] - back
         uhi = box.centre[0] + box.half[0]
         reach = w_open / 2 + g.finger_thickness if box.name.endswith("finger") else box.half[2]
         low = oz + np.minimum(xz * ulo, xz * uhi) - np.abs(yz) * box.half[1] - np.abs(zz) * reach

@@ -19,12 +19,12 @@ from kgn_bench.geometry import invert_pose, make_pose, rot_z
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes.base import EVAL_DENSITY
 from kgn_bench.sim.collision import body_collisions, label_collisions
-from kgn_bench.sim.robot import BIN
-from kgn_bench.sim.scene import TABLE_HALF_SIZE, Scene
+from kgn_bench.sim.robot import on_table
+from kgn_bench.sim.scene import Scene
 
 from .base import Candidates, DetectorError, Observation
 
-__all__ = ["TILT_DEG", "OracleDetector", "on_table", "tilted"]
+__all__ = ["TILT_DEG", "OracleDetector", "tilted"]
 
 TILT_DEG = 30.0
 
@@ -35,22 +35,21 @@ def tilted(grasps: GraspSet, angles: tuple[float, ...]) -> GraspSet:
     return GraspSet.concatenate([GraspSet(grasps.poses @ R, grasps.widths, grasps.collides) for R in turns])
 
 
-def on_table(scene: Scene, i: int) -> bool:
-    """Whether object ``i`` rests on the table top (not in the bin, not fallen off). The bin's inner side
-    reaches 3 cm under the table's footprint, so an object in the bin is never on the table."""
-    t = scene.object_pose(i)[:3, 3]
-    return bool(-0.01 < t[2] < 0.5 and np.all(np.abs(t[:2]) < TABLE_HALF_SIZE) and not BIN.contains(t))
-
-
 class OracleDetector:
     """Ground-truth grasps of the objects on the table (privileged: call ``attach(scene)`` first)."""
 
     name = "oracle"
     privileged = True
 
-    def __init__(self, approach: float = ExecutionConfig().pregrasp_distance) -> None:
-        self.approach = approach
+    def __init__(self, approach: float | None = None) -> None:
+        """``approach``: how far back the body check sweeps the palm and wrist (default: the pre-grasp
+        distance of ``ExecutionConfig``; ``configure`` sets the task's)."""
+        self.approach = ExecutionConfig().pregrasp_distance if approach is None else approach
         self._scene: Scene | None = None
+
+    def configure(self, execution: ExecutionConfig) -> None:
+        """Take the task's execution settings (the pre-grasp distance of the body check)."""
+        self.approach = execution.pregrasp_distance
 
     def attach(self, scene: Scene) -> None:
         self._scene = scene

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from kgn_bench.grasp import grasp_rotation_error, keypoints_in_frame
 from kgn_bench.io import atomic_write_text
@@ -73,18 +74,9 @@ class PnpNoiseRow:
 
 
 def random_rotations(n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` rotation matrices (n, 3, 3) uniformly distributed on SO(3) (normalised Gaussian quaternions)."""
-    q = rng.standard_normal((n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-        ],
-        axis=1,
-    )
+    """``n`` rotation matrices (n, 3, 3) uniformly distributed on SO(3): normalised Gaussian quaternions
+    (w, x, y, z), drawn from ``rng`` (scipy's ``Rotation``)."""
+    return Rotation.from_quat(rng.standard_normal((n, 4)), scalar_first=True).as_matrix()
 
 
 def _box_side(box: str, distance: float) -> float:

@@ -34,10 +34,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from kgn_bench.detectors.base import Candidates
 from kgn_bench.grasp import keypoint_box
 from kgn_bench.model.targets import NUM_BINS, apply_affine, invert_affine, orientation_bins
 from kgn_bench.model.variants import BOX_SIDE, Variant
+from kgn_bench.types import Candidates
 
 __all__ = ["DEPTH_WINDOW", "DecodeConfig", "decode", "depth_at", "solve_box_pnp", "solve_box_pnp_batch"]
 

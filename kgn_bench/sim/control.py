@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import mink
 import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
 
-from kgn_bench.geometry import make_pose, matrix_from_rotvec, rotation_angle, rotvec_from_matrix
+from kgn_bench.geometry import make_pose, rotation_angle
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.sim.robot import BASE_POSITION, READY_Q, RobotIndex, robot_only_model
 from kgn_bench.sim.scene import Scene
@@ -206,12 +207,11 @@ class Executor:
         the IK reference's TCP and the goal at the end (the error of the IK itself, not of the servos)."""
         T0 = self.ik.tcp_pose(self.q_ref)
         R0, p0 = T0[:3, :3], T0[:3, 3]
-        axis_angle = rotvec_from_matrix(R0.T @ T_goal[:3, :3])
+        slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([R0, T_goal[:3, :3]])))  # R0·exp(s·log(R0ᵀR1))
         n = max(1, round(duration / CONTROL_DT))
         for k in range(1, n + 1):
             s = min_jerk(k / n)
-            R = R0 @ matrix_from_rotvec(s * axis_angle)
-            target = make_pose(R, p0 + s * (T_goal[:3, 3] - p0))
+            target = make_pose(slerp(s).as_matrix(), p0 + s * (T_goal[:3, 3] - p0))
             self.q_ref = self.ik.step(self.q_ref, target)
             self._tick(monitor)
         err = float("inf")

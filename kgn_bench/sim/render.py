@@ -10,24 +10,14 @@ Call ``close()`` (or use the renderer as a context manager) to release the GL co
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from kgn_bench.sim.scene import GROUP_ROBOT, GROUP_VISUAL, Scene
+from kgn_bench.types import RGBD
 
 __all__ = ["RGBD", "SceneRenderer"]
-
-
-@dataclass
-class RGBD:
-    """One rendered view: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres (0 = no return),
-    ``mask`` (H, W) uint8 instance labels (0 = table or background, i + 1 = object i)."""
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    mask: np.ndarray
 
 
 def _gl_context(width: int, height: int):

@@ -28,7 +28,7 @@ from dm_control import mjcf
 from kgn_bench.geometry import quat_wxyz_from_matrix
 from kgn_bench.gripper import GRIPPER, GripperGeometry
 from kgn_bench.resources import arm_xml
-from kgn_bench.sim.scene import GROUP_ROBOT
+from kgn_bench.sim.scene import GROUP_ROBOT, TABLE_HALF_SIZE, Scene
 
 __all__ = [
     "ARM_JOINTS",
@@ -41,6 +41,7 @@ __all__ = [
     "add_workcell",
     "build_gripper",
     "build_robot",
+    "on_table",
     "robot_only_model",
 ]
 
@@ -192,3 +193,11 @@ def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
             return True
         body = model.body_parentid[body]
     return False
+
+
+def on_table(scene: Scene, i: int) -> bool:
+    """Whether object ``i`` of a work-cell scene rests on the table top (not in the bin, not fallen off).
+    The bin's inner side reaches 3 cm under the table's footprint, so an object in the bin is never on the
+    table."""
+    t = scene.object_pose(i)[:3, 3]
+    return bool(-0.01 < t[2] < 0.5 and np.all(np.abs(t[:2]) < TABLE_HALF_SIZE) and not BIN.contains(t))
