@@ -7,6 +7,7 @@ out-of-range values and unknown object names are errors (``ConfigError``).
 
 from __future__ import annotations
 
+import typing
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,7 @@ from kgn_bench.errors import KGNBenchError
 from kgn_bench.shapes import OBJECTS, PRIMITIVES
 
 __all__ = ["PROTOCOLS", "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig",
-           "apply_override", "load_task", "read_toml", "resolve_task"]
+           "apply_override", "load_task", "parse_section", "read_toml", "resolve_task"]
 
 PROTOCOLS = ("single_object", "multi_object")
 SCORES = ("confidence_minus_error", "paper_literal")
@@ -43,24 +44,23 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class SelectorConfig:
-    """Grasp selection (DESIGN §7). ``score``: ``confidence_minus_error`` = c − λ·RE (the default; λ =
-    ``reprojection_weight``, default 0: kgnv2 single-object trials gave 96.7, 96.7 and 97.5 % at λ = 0, 0.02
-    and 0.1, clearance 97.4 and 96.8 % at λ = 0 and 0.1, a tie; README "Selector study") or ``paper_literal``
+    """Grasp selection (``bench.selector``): rank by score, keep the first candidate that passes the gripper
+    checks. ``score``: ``confidence_minus_error`` = c − λ·RE (the default; λ = ``reprojection_weight``,
+    default 0: larger λ made no measurable difference; README "Selector study") or ``paper_literal``
     = c + RE (the paper's printed formula, kept as an ablation). A candidate closer than
     ``retry_distance`` (m) and ``retry_angle_deg`` (up to the 180° symmetry) to a grasp that already failed
     in the same trial is not tried again. ``shadow_margin`` (m): how far behind the observed surface a palm
     or wrist point must lie to count as hidden (the selector's occlusion check). ``centre_range`` (m, 0 = off):
     how far the chosen grasp may move along its closing axis to centre the observed points between the jaws
-    (default 0.02: kgnv2 single-object success 95.8 % without, 96.7 % with; README "Selector study").
+    (default 0.02; README "Selector study").
     ``level_deg`` (degrees, 0 = off): grasps approaching within this angle of straight down get a horizontal
-    closing axis (``bench.selector.level_poses``; default 30: kgnv2 single-object 93.3 % without, 96.7 % with).
+    closing axis (``bench.selector.level_poses``; default 30; README "Selector study").
     ``palm_margin`` (m): how much the palm and wrist boxes grow in the collision check (default 0.01: the
     observed cloud is sparse and one-sided, so the bare palm grazed rims and neighbours it did not see;
-    kgnv2 clearance 93.3 → 96.0 % clear, collisions 9 → 1; ``results/sweeps/palm_margin.md``).
+    ``results/sweeps/palm_margin.md``).
     ``min_bite`` (m, 0 = off): how far up from the fingertips the enclosed observed points must reach, unless
     the table stops the fingertips first (the enclosure check; the pose search then pushes a shallow grasp
-    deeper; default 0.01: kgnv2 clearance success 94.9 → 97.4 %, household mix 92.0 → 93.7 %, single
-    household objects 92.5 → 95.0 %, single primitives unchanged; ``results/sweeps/min_bite.md``)."""
+    deeper; default 0.01; ``results/sweeps/min_bite.md``)."""
 
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
@@ -122,39 +122,64 @@ class TaskConfig:
         return asdict(self)
 
 
-def _coerce(where: str, key: str, value: Any, default: Any) -> Any:
-    """Check ``value`` against the type of ``default``; ints are accepted for floats, lists for tuples."""
-    if isinstance(default, bool):
-        ok = isinstance(value, bool)
-    elif isinstance(default, float):
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        value = float(value) if ok else value
-    elif isinstance(default, int):
-        ok = isinstance(value, int) and not isinstance(value, bool)
-    elif isinstance(default, str):
-        ok = isinstance(value, str)
-    elif isinstance(default, tuple):
-        ok = (isinstance(value, list) and len(value) == len(default)
-              and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _coerce(where: str, key: str, value: Any, hint: Any) -> Any:
+    """Check ``value`` against the type ``hint`` of a dataclass field: ``bool``, ``int``, ``float`` (ints
+    accepted), ``str``, and tuples of numbers from TOML lists (``tuple[float, float]`` fixed length,
+    ``tuple[int, ...]`` any length; elements typed like the hint's)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is tuple:
+        variable = len(args) == 2 and args[1] is Ellipsis
+        element = args[0] if args else float
+        n = None if variable else len(args)
+        ok = isinstance(value, list) and (n is None or len(value) == n) and all(
+            isinstance(v, int) and not isinstance(v, bool) if element is int else _is_number(v) for v in value)
         if not ok:
-            raise ConfigError(f"{where}: {key} must be a list of {len(default)} numbers, got {value!r}")
-        value = tuple(float(v) for v in value)
+            kind = "integers" if element is int else "numbers"
+            count = "a list of" if n is None else f"a list of {n}"
+            raise ConfigError(f"{where}: {key} must be {count} {kind}, got {value!r}")
+        return tuple(int(v) if element is int else float(v) for v in value)
+    if hint is bool:
+        ok = isinstance(value, bool)
+    elif hint is float:
+        ok = _is_number(value)
+        value = float(value) if ok else value
+    elif hint is int:
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif hint is str:
+        ok = isinstance(value, str)
     else:
         ok = True
     if not ok:
-        raise ConfigError(f"{where}: {key} must be {type(default).__name__}, got {value!r}")
+        raise ConfigError(f"{where}: {key} must be {getattr(hint, '__name__', hint)}, got {value!r}")
     return value
 
 
-def _section(where: str, cls, table: dict[str, Any]):
-    known = {f.name: f for f in fields(cls)}
-    defaults = cls()
+def parse_section(where: str, cls, table: Any, error: type[Exception] = ConfigError):
+    """The dataclass ``cls`` from one TOML table: unknown keys and wrong types are ``error`` with one line
+    naming ``where`` and the key; values the dataclass itself refuses (``__post_init__``) too. Every config
+    of the project (tasks, plans, training) is read through this."""
+    if not isinstance(table, dict):
+        raise error(f"{where} must be a table")
+    hints = typing.get_type_hints(cls)
+    known = [f.name for f in fields(cls)]
     kwargs = {}
-    for key, value in table.items():
-        if key not in known:
-            raise ConfigError(f"{where}: unknown key {key!r} (known: {', '.join(known)})")
-        kwargs[key] = _coerce(where, key, value, getattr(defaults, key))
-    return cls(**kwargs)
+    try:
+        for key, value in table.items():
+            if key not in known:
+                raise ConfigError(f"{where}: unknown key {key!r} (known: {', '.join(known)})")
+            kwargs[key] = _coerce(where, key, value, hints[key])
+    except ConfigError as e:
+        raise error(str(e)) from None
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as e:
+        if isinstance(e, KGNBenchError):
+            raise error(str(e)) from None
+        raise error(f"{where}: {e}") from None
 
 
 def read_toml(path: Path, what: str, error: type[Exception] = ConfigError) -> dict[str, Any]:
@@ -208,7 +233,7 @@ def load_task(path: str | Path) -> TaskConfig:
     for key in task:
         if key not in allowed:
             raise ConfigError(f"{path}: [task] unknown key {key!r} (known: {', '.join(allowed)})")
-        task[key] = _coerce(f"{path} [task]", key, task[key], allowed[key])
+        task[key] = _coerce(f"{path} [task]", key, task[key], type(allowed[key]))
     if task["protocol"] not in PROTOCOLS:
         raise ConfigError(f"{path}: protocol must be one of {', '.join(PROTOCOLS)}, got {task['protocol']!r}")
     objects = dict(raw.get("objects", {}))
@@ -226,9 +251,9 @@ def load_task(path: str | Path) -> TaskConfig:
     cfg = TaskConfig(
         name=task["name"], protocol=task["protocol"], seed=task.get("seed", 0), trials=task.get("trials", 10),
         objects=tuple(names), objects_per_scene=per_scene,
-        camera=_section(f"{path} [camera]", CameraConfig, raw.get("camera", {})),
-        selector=_section(f"{path} [selector]", SelectorConfig, raw.get("selector", {})),
-        execution=_section(f"{path} [execution]", ExecutionConfig, raw.get("execution", {})),
+        camera=parse_section(f"{path} [camera]", CameraConfig, raw.get("camera", {})),
+        selector=parse_section(f"{path} [selector]", SelectorConfig, raw.get("selector", {})),
+        execution=parse_section(f"{path} [execution]", ExecutionConfig, raw.get("execution", {})),
     )
     validate(cfg, str(path))
     return cfg
@@ -293,7 +318,7 @@ def apply_override(cfg: TaskConfig, key: str, text: str) -> TaskConfig:
         except tomllib.TOMLDecodeError:
             raise ConfigError(f"setting {key}: cannot read {text!r} as {type(default).__name__}") from None
         value = parsed
-    value = _coerce(f"setting {key}", name, value, default)
+    value = _coerce(f"setting {key}", name, value, typing.get_type_hints(type(current))[name])
     out = replace(cfg, **{section: replace(current, **{name: value})})
     validate(out, f"setting {key}={text}")
     return out

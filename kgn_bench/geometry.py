@@ -1,6 +1,6 @@
 """Rigid-body geometry: rotations (scipy.spatial.transform), homogeneous poses, pinhole projection.
 
-Conventions (DESIGN §4): metres and radians; a pose ``T_a_b`` is a 4×4 homogeneous matrix that maps
+Conventions (used throughout the package): metres and radians; a pose ``T_a_b`` is a 4×4 homogeneous matrix that maps
 points expressed in frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``). Rotation matrices act on
 column vectors. Pixel coordinates follow OpenCV: pixel ``(u, v)`` has its centre at integer ``(u, v)``,
 ``u`` grows to the right and ``v`` downwards.

@@ -1,6 +1,6 @@
 """The grasp frame, keypoint boxes, the 180° symmetry and arrays of grasps.
 
-Grasp frame (DESIGN §4): origin at the midpoint between the fingertips; +x = approach direction (the
+Grasp frame: origin at the midpoint between the fingertips; +x = approach direction (the
 fingers point along +x, the gripper body lies at x < 0); z = closing axis with the left finger at +z;
 y = z × x. A grasp and the same grasp turned 180° about its x axis are the same physical grasp.
 """

@@ -1,6 +1,6 @@
 """Gripper dimensions: the one source for the MJCF gripper, the labelling proxy and the selector.
 
-All lengths in metres, expressed in the grasp frame (DESIGN §4): origin at the fingertip midpoint,
+All lengths in metres, expressed in the grasp frame (``kgn_bench.grasp``): origin at the fingertip midpoint,
 +x = approach (the gripper body lies at x < 0), z = closing axis with the left finger at +z, y = z × x.
 
 The physical gripper is three boxes in that frame, for a jaw opening ``w``:
@@ -42,7 +42,7 @@ class GripperBox:
 class GripperGeometry:
     """Dimensions of the parallel-jaw gripper and of its labelling proxy.
 
-    The proxy used to label ground-truth grasps (reference facts §2.5) is a solid box occupying
+    The proxy used to label ground-truth grasps (as in the reference implementation) is a solid box occupying
     ``x ∈ [−proxy_depth, 0]``, ``|y| ≤ proxy_thickness / 2`` and ``|z| ≤ w/2 + proxy_clearance`` in the
     grasp frame, for a grasp of width ``w``: it covers the fingers, the palm and the space between them.
     """

@@ -40,11 +40,11 @@ def _set_torch_threads(n: int) -> int | None:
 
 
 def pin_worker_threads() -> None:
-    """For a process that only runs trials (a pool or cluster worker): one thread everywhere, for good."""
+    """For a process that only runs jobs (a pool or cluster worker): one thread everywhere, for good. Call it
+    after the detector is built, so that torch, if the detector loaded it, is covered too."""
     os.environ["LP_NUM_THREADS"] = str(TRIAL_THREADS)
     os.environ.setdefault("OMP_NUM_THREADS", str(TRIAL_THREADS))
     import cv2
-    import torch  # noqa: F401  (loaded here so that _set_torch_threads finds it)
     from threadpoolctl import threadpool_limits
 
     cv2.setNumThreads(TRIAL_THREADS)

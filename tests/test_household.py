@@ -1,4 +1,4 @@
-"""Household objects (DESIGN §5): sizes, meshes, hollow collision geometry, grasp families, settling in MuJoCo,
+"""Household objects: sizes, meshes, hollow collision geometry, grasp families, settling in MuJoCo,
 task files and their separation from the training set."""
 
 import json

@@ -6,7 +6,7 @@ import pytest
 from kgn_bench.shapes import EVAL_DENSITY, PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_from_dims
 from kgn_bench.shapes.primitives import WALL_RATIO, Cuboid, Cylinder, Ring, SemiSphere, Sphere, Stick
 
-EXPECTED_COUNTS = {  # reference facts §2.4 (train 5/11, test 10/30)
+EXPECTED_COUNTS = {  # the reference implementation's counts (train 5/11, test 10/30)
     "cuboid": (60, 120),
     "cylinder": (77, 360),
     "ring": (22, 60),

@@ -138,7 +138,7 @@ def test_objects_without_collision_free_grasps_are_skipped_but_receive_their_pre
 
 
 def _brute_force(pred, gt, types, th):
-    """Per-pair loops straight from the definitions (facts §6), for comparison."""
+    """Per-pair loops straight from the metric definitions (``kgn_bench.eval.vision``), for comparison."""
     def d_r(A, B):
         return math.acos(min(1.0, max(-1.0, (np.trace(A.T @ B) - 1.0) / 2.0)))
 

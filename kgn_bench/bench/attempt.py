@@ -1,7 +1,7 @@
 """One grasp attempt in the work cell: pre-grasp, straight approach, close, lift, carry to the bin,
 release; the outcome and its failure reason.
 
-Failure reasons (DESIGN §7): ``collision`` (before closing, the arm or palm touched anything, or a finger
+Failure reasons: ``collision`` (before closing, the arm or palm touched anything, or a finger
 touched the table, bin or floor), ``missed`` (no object between both fingers after closing),
 ``dropped_lift`` (held after closing but, after the lift, no longer held or the object point that was at
 the TCP when the jaws closed rose less than ``min_lift``: slip at the grasp, while an object that only

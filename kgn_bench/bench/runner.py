@@ -22,11 +22,8 @@ import os
 import subprocess
 import time
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +31,7 @@ from kgn_bench.config import TaskConfig
 from kgn_bench.environment import environment
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.io import atomic_write_text
+from kgn_bench.pool import run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.threads import pin_worker_threads, trial_threads
 
@@ -254,26 +252,9 @@ def _run_locked(task: TaskConfig, detector: str, instance: Any, out: Path, ident
         records.append(rec)
         bar.update(1, _running_rates(records))
 
-    if workers == 1 or len(todo) <= 1:
-        _worker_setup(detector, instance)
-        with trial_threads():
-            for job in jobs:
-                finished(_run_one(job))
-    else:
-        try:
-            with ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
-                                     initializer=_worker_init, initargs=(detector,)) as pool:
-                futures = [pool.submit(_run_one, job) for job in jobs]
-                try:
-                    for fut in as_completed(futures):
-                        finished(fut.result())
-                except BaseException:
-                    for f in futures:
-                        f.cancel()
-                    raise
-        except BrokenProcessPool:
-            raise RunError(f"a worker process died while running {task.name} ({len(records)} of {task.n_trials} "
-                           "trials finished and kept); rerun the same command to resume") from None
+    _worker_setup(detector, instance)  # the in-process path uses the detector built above
+    run_jobs(jobs, _run_one, finished, workers=workers, initializer=_worker_init, initargs=(detector,),
+             local=trial_threads, what=f"{task.name} with {detector} ({len(records)} of {task.n_trials} trials done)")
     wall = time.perf_counter() - start
     run_meta = {k: identity[k] for k in ("task", "protocol", "detector", "seed")}
     summary = summarise(records, run_meta)

@@ -1,4 +1,4 @@
-"""Grasp selection (DESIGN §7): rank candidates by score, then keep the first that passes the gripper prior.
+"""Grasp selection: rank candidates by score, then keep the first that passes the gripper prior.
 
 Score: ``s = c − λ·RE`` (``confidence_minus_error``, the default) or the paper's printed ``s = c + RE``
 (``paper_literal``); a missing reprojection error (NaN) counts as 0. Then, in this order, each rejection

@@ -12,7 +12,7 @@ Layout of a dataset folder::
 ``scene.json`` holds ``intrinsics`` (fx, fy, cx, cy, width, height), ``camera_poses`` (V × 4 × 4,
 OpenCV camera-to-world), and ``objects``: per object its ``type``, ``dims`` (metres), ``pose``
 (4 × 4 ``T_world_obj``), ``color`` (RGB in [0, 1]), ``mass`` (kg) and ``grasps``: ``poses`` (N × 4 × 4,
-world frame, DESIGN §4 grasp frame), ``widths`` (N, metres) and ``collides`` (N, bool).
+world frame, grasp frame of ``kgn_bench.grasp``), ``widths`` (N, metres) and ``collides`` (N, bool).
 A scene folder is written under a temporary name and renamed when complete, so a folder named by its
 index is always whole.
 """

@@ -11,9 +11,7 @@ import json
 import os
 import shutil
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +26,7 @@ from kgn_bench.data.format import (
 )
 from kgn_bench.grasp import GraspSet
 from kgn_bench.io import atomic_write_text
+from kgn_bench.pool import run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_class, shape_from_dims
 from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics
@@ -35,6 +34,7 @@ from kgn_bench.sim.collision import LABEL_VERSION, label_scene
 from kgn_bench.sim.placement import PlacementConfig, place_objects, rectify_axisymmetric, settle
 from kgn_bench.sim.render import RGBD, SceneRenderer
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
+from kgn_bench.threads import pin_worker_threads
 
 __all__ = [
     "MODES",
@@ -207,8 +207,7 @@ def _generate_and_write(args: tuple[GenerateConfig, int, str]) -> dict[str, floa
 
 
 def _worker_init() -> None:
-    # One software-rendering thread per worker process: the workers already fill the cores.
-    os.environ.setdefault("LP_NUM_THREADS", "1")
+    pin_worker_threads()  # one thread per library: the workers already fill the cores
 
 
 def prepare_output(config: GenerateConfig, root: Path, overwrite: bool) -> list[int]:
@@ -261,19 +260,14 @@ def generate_dataset(config: GenerateConfig, root: Path, workers: int = 1, overw
     bar = Progress(len(todo), f"data generate {config.mode}", unit="scenes", enabled=progress)
     start = time.perf_counter()
     jobs = [(config, i, str(root)) for i in todo]
-    if workers == 1 or len(todo) <= 1:
-        results = map(_generate_and_write, jobs)
-        for timings in results:
-            for k, v in timings.items():
-                totals[k] += v
-            bar.update()
-    else:
-        with ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"),
-                                 initializer=_worker_init) as pool:
-            for timings in pool.map(_generate_and_write, jobs, chunksize=1):
-                for k, v in timings.items():
-                    totals[k] += v
-                bar.update()
+
+    def finished(timings: dict[str, float]) -> None:
+        for k, v in timings.items():
+            totals[k] += v
+        bar.update()
+
+    run_jobs(jobs, _generate_and_write, finished, workers=workers, initializer=_worker_init,
+             what=f"data generation into {root}")
     wall = time.perf_counter() - start
     train, test = config.split()
     atomic_write_text(root / "train.txt", "".join(f"{i}\n" for i in train))

@@ -15,7 +15,7 @@ Augmentation (``AugmentConfig``; training only, seeded per (seed, epoch, item)):
   width targets are unchanged;
 * colour: brightness, contrast and saturation factors ``1 + U(±colour)`` in random order;
 * depth noise: ``N(0, depth_noise²)`` clipped to ±``depth_clip`` on valid pixels only (holes stay holes,
-  unlike the reference code, facts §9.9).
+  unlike the reference implementation, which also noises the 0 pixels).
 
 Evaluation samples (``augment=None``) use the inference path: the full frame resized by σ.
 """

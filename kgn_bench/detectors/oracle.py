@@ -1,7 +1,7 @@
 """The oracle detector: ground-truth grasp families read from the simulator (privileged).
 
 It is the harness's upper bound, not a detector: it sees object types, sizes and poses, which no camera
-gives. For every object still on the table it returns the evaluation-density families (DESIGN §5), each
+gives. For every object still on the table it returns the evaluation-density families (``EVAL_DENSITY``), each
 also tilted by ±``TILT_DEG`` about its closing axis (``G · R_z(±α)``: the fingers stay where they pinch,
 the approach leans along the pinched wall or axis, so a ring standing on edge can be taken from above
 at a slant), minus those whose labelling proxy collides or whose palm and wrist would hit anything on the straight

@@ -1,8 +1,8 @@
 """The paper's vision metrics: grasp success rate (GSR), grasp coverage rate (GCR) and object success rate
-(OSR) at three (translation, rotation) error thresholds (facts §6, DESIGN §5).
+(OSR) at three (translation, rotation) error thresholds, as defined by the reference implementation.
 
-Frames and units: every pose here is a world-frame grasp pose ``T_world_grasp`` (4×4, DESIGN §4 grasp
-frame). Translations are in metres, angles in radians (degrees only in text). The predicted width is not
+Frames and units: every pose here is a world-frame grasp pose ``T_world_grasp`` (4×4, grasp frame of
+``kgn_bench.grasp``). Translations are in metres, angles in radians (degrees only in text). The predicted width is not
 evaluated.
 
 Matching: prediction p matches ground-truth (GT) grasp g at threshold (δ, θ) iff, both strictly,
@@ -29,8 +29,8 @@ images (they are never averaged per image):
 A rate whose denominator is 0 (GSR when no prediction was made at all, a shape absent from the data) is
 undefined: ``None`` in dicts and JSON, "n/a" in text. It is never reported as 0.
 
-Per shape (this fixes the reference's per-type GSR, facts §9.7, whose denominator was every prediction of
-the image): each prediction is *attributed* to one object per threshold, namely
+Per shape (this fixes the reference implementation's per-type GSR, whose denominator was every prediction
+of the image): each prediction is *attributed* to one object per threshold, namely
 
 * the object it is credited to, if any;
 * otherwise the object owning the GT grasp nearest to it in translation among all the image's labelled

@@ -1,7 +1,8 @@
-"""Decoding of KGN / KGNv2 prediction maps into camera-frame grasp candidates (DESIGN §6, facts §5).
+"""Decoding of KGN / KGNv2 prediction maps into camera-frame grasp candidates, following the
+reference implementation.
 
-Input: the dense maps of one image (numpy, float32, output resolution Ho × Wo, format of the issue-4
-contract): ``hm`` (9, Ho, Wo) probabilities; ``reg`` (2, Ho, Wo); ``kpts`` (72, Ho, Wo), channel
+Input: the dense maps of one image (numpy, float32, output resolution Ho × Wo, the head layout of
+``kgn_bench.model.network``): ``hm`` (9, Ho, Wo) probabilities; ``reg`` (2, Ho, Wo); ``kpts`` (72, Ho, Wo), channel
 8c + 2j + {0: x, 1: y}; ``width`` (9, Ho, Wo) m; ``scale`` (9, Ho, Wo) m for variants whose translation is
 ``scale``. ``M`` is the 2×3 image → output affine (see ``kgn_bench.model.targets``), ``K`` the 3×3
 intrinsics of the original image.

@@ -1,4 +1,4 @@
-"""Training losses of KGN / KGNv2 (DESIGN §6, reference facts §3.5).
+"""Training losses of KGN / KGNv2 (those of the reference implementation).
 
 Heatmap: CornerNet focal loss with α = 2, β = 4 on ``p = clamp(sigmoid(logits), 1e-4, 1 − 1e-4)``::
 
@@ -14,8 +14,8 @@ over the scalars of a slot. Only the target bin's slice of a per-bin head is sup
 no bins. Total ``L = w_hm·L_hm + w_reg·L_reg + w_kpts·L_kpts + w_width·L_width [+ w_scale·L_scale]``, the scale
 term only for variants with the scale branch.
 
-Targets (batched contract of issue 4, B images, S slots): ``hm`` (B, 9, Ho, Wo); ``ind``, ``bin`` (B, S)
-int64; ``mask``, ``width``, ``scale`` (B, S); ``reg`` (B, S, 2); ``kpts`` (B, S, 8).
+Targets (the dict of ``kgn_bench.model.targets``, batched: B images, S slots): ``hm`` (B, 9, Ho, Wo);
+``ind``, ``bin`` (B, S) int64; ``mask``, ``width``, ``scale`` (B, S); ``reg`` (B, S, 2); ``kpts`` (B, S, 8).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The KGN / KGNv2 network: a compact encoder-decoder at output stride 4 with the reference's head layout.
 
-DESIGN §6: the paper's DLA-34 with deformable convolutions is too slow for 2 CPU cores, so the backbone is
+The paper's DLA-34 with deformable convolutions is too slow for 2 CPU cores, so the backbone is
 a small ResNet-style encoder with an FPN-style decoder:
 
 * encoder: stem Conv3×3/2 (4 → c₀) + BN + ReLU (stride 2), then four stages at strides 4, 8, 16, 32, each
@@ -12,11 +12,12 @@ a small ResNet-style encoder with an FPN-style decoder:
 ``KGNNet.backbone`` maps (B, 4, H, W) to stride-4 features (B, ``backbone.out_channels``, H/4, W/4): any
 module with that interface (a bigger backbone for GPU users) drops in under the same heads.
 
-Heads (reference facts §3.6, §4), each Conv3×3(C → ``head_conv``, bias) → ReLU → Conv1×1(→ channels):
-``hm`` 9 (orientation-bin centre heatmaps, LOGITS; final bias −2.19 so the initial sigmoid is ≈ 0.1),
-``reg`` 2 (sub-pixel centre offset), ``kpts`` 72 (channel 8c + 2j + {0: x, 1: y}: keypoint j ∈ (L, R, TL,
-TR) of bin c, offset from the integer cell in output px), ``width`` 9 (metres, per bin), and ``scale`` 9
-(‖t_cam‖ in metres, per bin) for variants with the scale branch. All other final biases are 0.
+Heads (the layout of the reference implementation), each Conv3×3(C → ``head_conv``, bias) → ReLU →
+Conv1×1(→ channels): ``hm`` 9 (orientation-bin centre heatmaps, LOGITS; final bias −2.19 so the initial
+sigmoid is ≈ 0.1), ``reg`` 2 (sub-pixel centre offset), ``kpts`` 72 (channel 8c + 2j + {0: x, 1: y}:
+keypoint j ∈ (L, R, TL, TR) of bin c, offset from the integer cell in output px), ``width`` 9 (metres, per
+bin), and ``scale`` 9 (‖t_cam‖ in metres, per bin) for variants with the scale branch. All other final
+biases are 0.
 """
 
 from __future__ import annotations

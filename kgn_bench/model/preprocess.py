@@ -35,8 +35,8 @@ in metres. The default constants are round values for our renders (the camera lo
 from 0.6–1.0 m at 30–90° elevation): RGB mean 0.5, std 0.25; depth mean 0.8 m, std 0.2 m. A check on 40
 generated views gave RGB mean 0.53, std 0.19, and valid depth mean 0.77 m, std 0.16 m (1–99 % range
 0.48–1.18 m), 8 % of the pixels invalid. The constants only need to bring the channels to order 1 (the
-first convolution is followed by BatchNorm); the reference's RGB std of 0.032 (reference facts §9.12)
-would blow real images up to ±20 and is not used.
+first convolution is followed by BatchNorm); the reference implementation's RGB std of 0.032 (fitted to its
+synthetic renders) would blow real images up to ±20 and is not used.
 
 Invalid depth (0 = no return) is set to the depth mean, i.e. standardised 0. Padding and the
 out-of-image part of a crop are standardised 0 in all four channels too, so "no data" has one fixed

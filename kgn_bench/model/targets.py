@@ -1,9 +1,10 @@
-"""Training targets of KGN / KGNv2 from ground-truth grasps (DESIGN §6, reference facts §3.4).
+"""Training targets of KGN / KGNv2 from ground-truth grasps, built as in the reference implementation.
 
-Frames and units. Grasp poses are ``T_cam_grasp`` (4×4, OpenCV camera frame, metres; grasp frame of
-DESIGN §4). Image pixels ``(u, v)`` follow OpenCV (pixel centres at integers). Output coordinates
-``(x_o, y_o)`` are continuous pixel coordinates of the stride-4 output maps, reached from image pixels by
-the 2×3 affine ``M``: ``[x_o, y_o] = M @ [u, v, 1]`` (resize, crop, zoom and horizontal flip).
+Frames and units. Grasp poses are ``T_cam_grasp`` (4×4, OpenCV camera frame, metres; grasp frame:
+origin at the fingertip midpoint, +x the approach, z the closing axis, ``kgn_bench.grasp``). Image pixels
+``(u, v)`` follow OpenCV (pixel centres at integers). Output coordinates ``(x_o, y_o)`` are continuous pixel
+coordinates of the stride-4 output maps, reached from image pixels by the 2×3 affine ``M``:
+``[x_o, y_o] = M @ [u, v, 1]`` (resize, crop, zoom and horizontal flip).
 
 Per grasp, in order:
 
@@ -19,10 +20,10 @@ Per grasp, in order:
 5. heatmap: a 3×3 Gaussian (σ = 0.5: 1 at the integer cell, e^−2 at edges, e^−4 at corners, clipped at
    the map border) in channel ``c``, combined by element-wise maximum.
 
-Target dict (contract of issue 4), ``S = MAX_GRASPS`` slots: ``hm`` (9, Ho, Wo) float32; ``ind`` (S,) int64
-``= y_int·Wo + x_int``; ``mask`` (S,) float32; ``bin`` (S,) int64; ``reg`` (S, 2) float32 ``= centre − cell``;
-``kpts`` (S, 8) float32 keypoint offsets from the cell (L, R, TL, TR; x, y interleaved, output px);
-``width`` (S,) float32 metres; ``scale`` (S,) float32 ``= ‖t_cam‖`` metres.
+Target dict (the input of ``kgn_bench.model.losses``), ``S = MAX_GRASPS`` slots: ``hm`` (9, Ho, Wo)
+float32; ``ind`` (S,) int64 ``= y_int·Wo + x_int``; ``mask`` (S,) float32; ``bin`` (S,) int64; ``reg``
+(S, 2) float32 ``= centre − cell``; ``kpts`` (S, 8) float32 keypoint offsets from the cell (L, R, TL, TR;
+x, y interleaved, output px); ``width`` (S,) float32 metres; ``scale`` (S,) float32 ``= ‖t_cam‖`` metres.
 """
 
 from __future__ import annotations

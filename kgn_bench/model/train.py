@@ -22,14 +22,14 @@ import json
 import math
 import platform
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import torch
 from torch.utils.data import DataLoader
 
-from kgn_bench.config import read_toml, resolve_task
+from kgn_bench.config import parse_section, read_toml, resolve_task
 from kgn_bench.data.format import DatasetError
 from kgn_bench.data.training import AugmentConfig, GraspViewDataset
 from kgn_bench.errors import KGNBenchError
@@ -88,19 +88,6 @@ class TrainConfig:
         return json.loads(json.dumps(asdict(self)))
 
 
-def _section(where: str, cls, raw: Any):
-    if not isinstance(raw, dict):
-        raise TrainConfigError(f"{where} must be a table")
-    names = {f.name for f in fields(cls)}
-    unknown = sorted(set(raw) - names)
-    if unknown:
-        raise TrainConfigError(f"{where}: unknown key(s) {', '.join(unknown)}")
-    try:
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in raw.items()})
-    except (TypeError, ValueError) as e:
-        raise TrainConfigError(f"{where}: {e}") from None
-
-
 def load_train_config(path: Path) -> TrainConfig:
     """Parse and validate a training TOML file; ``TrainConfigError`` (one line) on any problem."""
     path = resolve_task(path)
@@ -110,7 +97,7 @@ def load_train_config(path: Path) -> TrainConfig:
     unknown = sorted(set(raw) - set(sections))
     if unknown:
         raise TrainConfigError(f"{path}: unknown section(s) {', '.join(unknown)}")
-    parts = {k: _section(f"{path} [{k}]", cls, raw.get(k, {})) for k, cls in sections.items()}
+    parts = {k: parse_section(f"{path} [{k}]", cls, raw.get(k, {}), TrainConfigError) for k, cls in sections.items()}
     cfg = TrainConfig(name=path.stem, **parts)
     t = cfg.train
     try:

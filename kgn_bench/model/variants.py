@@ -1,4 +1,4 @@
-"""The four detector variants (DESIGN §6) as configuration, not code forks.
+"""The four detector variants as configuration, not code forks.
 
 A variant fixes three choices:
 

@@ -2,7 +2,7 @@
 geoms and grasp families.
 
 ``PRIMITIVES`` is the training set (the dataset generator and the vision metrics use it alone); ``HOUSEHOLD``
-holds the closed-loop objects that never appear in training data (DESIGN §5); ``OBJECTS`` is both, and
+holds the closed-loop objects that never appear in training data; ``OBJECTS`` is both, and
 ``shape_class``/``shape_from_dims`` look names up there.
 """
 

@@ -23,7 +23,8 @@ __all__ = ["EVAL_DENSITY", "TRAIN_DENSITY", "GeomSpec", "GraspDensity", "RestPos
 @dataclass(frozen=True)
 class GraspDensity:
     """How densely grasp families are sampled: ``translations`` positions along a family's free
-    translation and ``angles`` unique angles over [0, 2π) (no duplicate endpoint, DESIGN §5)."""
+    translation and ``angles`` unique angles over [0, 2π) (no duplicate endpoint at 2π, for training and
+    evaluation alike)."""
 
     translations: int
     angles: int

@@ -1,4 +1,4 @@
-"""Household objects for the closed-loop benchmark (DESIGN §5): not in the training data, built from pieces.
+"""Household objects for the closed-loop benchmark: not in the training data, built from pieces.
 
 Each object is a frozen dataclass of sizes in metres, sampled uniformly from ``RANGES``; its object frame is
 documented on the class. The pieces are the primitives' own: boxes, cylinders, spheres, the hollow rings of

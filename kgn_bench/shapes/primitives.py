@@ -1,8 +1,9 @@
 """The six Primitive Shape (PS) objects with their reference size ranges and grasp families.
 
-Sizes, widths and sink-in depths follow the reference facts §2.2 and §2.4; angles are unique samples
-over [0, 2π) (DESIGN §5). ``R_z(θ)`` is a rotation about the object's z axis. The helpers
-``_top``/``_bottom``/``_side`` are the family orientations of the reference:
+Sizes, widths and sink-in depths follow the reference implementation's PS dataset; angles are unique
+samples over [0, 2π) (the reference's ``linspace(0, 2π, N)`` repeats 0 at 2π). ``R_z(θ)`` is a rotation
+about the object's z axis. The helpers ``_top``/``_bottom``/``_side`` are the family orientations of the
+reference:
 
 * top:    ``axis_align(−3, 2, 1)``: approach −Z (down), y = +Y, closing along +X;
 * bottom: ``axis_align(3, −2, 1)``: approach +Z (up), y = −Y, closing along +X;
@@ -25,7 +26,7 @@ from kgn_bench.shapes.meshes import arc, revolve_profile
 __all__ = ["WALL_RATIO", "Cuboid", "Cylinder", "Ring", "SemiSphere", "Sphere", "Stick"]
 
 WALL_RATIO = 1.15
-"""Outer over inner radius of the hollow tube, ring and bowl (reference facts §2.2)."""
+"""Outer over inner radius of the hollow tube, ring and bowl (the reference implementation's value)."""
 
 _TOP = axis_align((-3, 2, 1))
 _BOTTOM = axis_align((3, -2, 1))
@@ -34,7 +35,8 @@ _LYING = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
 """Rest orientation of an axisymmetric object on its side: object z → world +x, object x → world −z.
 
 With the object's +x pointing down, the side family's θ = 0 member approaches from straight above:
-this is the reference's stick rectification (§2.3), expressed for unique angles."""
+this is the reference implementation's stick rectification (a lying stick is turned about its own axis so
+that its side family holds an exact top-down grasp), expressed for unique angles."""
 
 _REVOLVE_SECTIONS = 48
 

@@ -73,7 +73,7 @@ class Intrinsics:
 REALSENSE = Intrinsics(
     fx=616.36529541, fy=616.20294189, cx=310.25881958, cy=236.59980774, width=640, height=480
 )
-"""RealSense colour intrinsics at 640×480 used by the PS dataset (reference facts §2.6)."""
+"""RealSense colour intrinsics at 640×480 used by the reference implementation's PS dataset."""
 
 
 _UP = np.array([0.0, 0.0, 1.0])
@@ -100,7 +100,7 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = _UP) -> np.nda
 def orbit_pose(distance: float, elevation: float, azimuth: float) -> np.ndarray:
     """Camera on a sphere around the world origin, looking at it with zero roll.
 
-    Position ``R_z(azimuth) · (0, d·cos(elevation), d·sin(elevation))`` (reference facts §2.6);
+    Position ``R_z(azimuth) · (0, d·cos(elevation), d·sin(elevation))`` (as the reference implementation);
     ``elevation = π/2`` is straight down. At exactly π/2 the image x axis is taken as
     ``R_z(azimuth)·(−1, 0, 0)``, the limit of the zero-roll frame as the elevation approaches 90°.
     """
@@ -115,7 +115,7 @@ def orbit_pose(distance: float, elevation: float, azimuth: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CameraSampler:
-    """Random viewpoints looking at the table centre (reference facts §2.6), zero roll.
+    """Random viewpoints looking at the table centre, zero roll (the PS dataset's camera sampling).
 
     distance ~ U[distance_range], elevation ~ U[elevation_range] (rad), azimuth ~ U[0, 2π).
     """

@@ -1,4 +1,4 @@
-"""Collision labelling of ground-truth grasps with the gripper proxy (reference facts §2.5), and the
+"""Collision labelling of ground-truth grasps with the gripper proxy (as in the reference implementation), and the
 privileged check of the whole gripper's approach (``body_collisions``, the oracle's).
 
 A grasp collides when its proxy box (``gripper.GRIPPER``) penetrates the table or any object other

@@ -1,4 +1,4 @@
-"""A RealSense-D435-like degradation of rendered planar depth (sim facts §4.2).
+"""A RealSense-D435-like degradation of rendered planar depth (after Intel's D400 stereo depth and noise model).
 
 The D435 measures depth by stereo matching between a left (reference) and a right infrared imager a baseline
 ``B`` = 50 mm apart. In the reference image a point at planar depth z has disparity d = f·B / z pixels and

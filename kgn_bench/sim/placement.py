@@ -1,7 +1,7 @@
 """Random object placement on the table and physical settling in MuJoCo.
 
 Each object gets a resting orientation drawn from its shape's ``rest_poses`` (by probability), a yaw
-~U[0, 2π) about world z and a position ``xy ~ N(0, σ²I)`` (σ = 6.25 cm, reference facts §2.3), just
+~U[0, 2π) about world z and a position ``xy ~ N(0, σ²I)`` (σ = 6.25 cm, as the reference implementation), just
 above the table. Objects are placed one by one, redrawing a position that would interpenetrate an
 already placed object; then gravity settles them and the settled poses are the recorded ones.
 """
@@ -113,8 +113,8 @@ def rectify_axisymmetric(scene: Scene, max_axis_z: float = 0.9) -> None:
     """Turn lying axisymmetric objects about their own axis so that their +x points down.
 
     A solid of revolution looks the same after any turn about its axis, so this only fixes the phase of
-    the frame: the side family's θ = 0 grasp then approaches from above (the reference's stick
-    rectification, §2.3). Objects whose axis is within ``arccos(max_axis_z)`` of vertical are left as
+    the frame: the side family's θ = 0 grasp then approaches from above (the reference implementation's
+    stick rectification). Objects whose axis is within ``arccos(max_axis_z)`` of vertical are left as
     they are. The physical state is updated so the body pose stays the recorded pose.
     """
     down = np.array([0.0, 0.0, -1.0])

@@ -4,8 +4,8 @@ the place bin and the floor, composed into a scene with dm_control's mjcf.
 Frames (world = table-top centre, +z up):
 
 - ``T_world_base``: the arm's mounting frame, at ``BASE_POSITION`` with the world's orientation.
-- The gripper's ``hand`` body sits at the wrist flange with the grasp frame's orientation (DESIGN §4):
-  +x along the last joint axis (approach), z the closing axis. Its site ``tcp`` lies at
+- The gripper's ``hand`` body sits at the wrist flange with the grasp frame's orientation
+  (``kgn_bench.grasp``): +x along the last joint axis (approach), z the closing axis. Its site ``tcp`` lies at
   ``(tcp_offset, 0, 0)``, the fingertip midpoint, so the TCP pose *is* a grasp pose.
 - The closing axis is the flange's y axis turned −45° about the flange z axis (the Panda hand's yaw).
 
@@ -13,7 +13,7 @@ Gripper actuation follows the usual tendon scheme: a fixed tendon ``0.5·(q_left
 opening), a joint equality keeping the fingers symmetric, and a force-limited position servo on the tendon
 (``GripperGeometry.grip_force``; its gain ``grip_stiffness`` is high enough that the limit, not the object's
 width, sets the squeeze). Pads: condim 4, elliptic cones with impratio 10 (scene option), stiff solref/solimp
-and priority 1 so their contact parameters win (sim_facts §5).
+and priority 1 so their contact parameters win.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Tabletop scenes composed with dm_control's mjcf and compiled into MuJoCo.
 
-World frame (DESIGN §4): origin at the centre of the table top, +z up; the table is a 1 m × 1 m × 4 cm
+World frame: origin at the centre of the table top, +z up; the table is a 1 m × 1 m × 4 cm
 box whose top face is z = 0. Each object is a free body whose frame is the shape's object frame, so the
 body pose *is* the object pose recorded in annotations (``T_world_obj``).
 

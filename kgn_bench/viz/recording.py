@@ -4,7 +4,7 @@ One ``Recorder`` writes one .rrd file for one trial through its own ``rr.Recordi
 touches rerun's global or thread-local recording, so several recorders may live (one after another or
 side by side) in one process and trials may run in parallel worker processes.
 
-Frames and entity paths (DESIGN §4):
+Frames and entity paths:
 
 - ``world``: world frame, origin at the table-top centre, +z up (logged as right-handed z-up).
 - ``world/bodies/{body}``: ``Transform3D`` = pose of MuJoCo body ``body`` in the world frame, one per
