@@ -327,25 +327,62 @@ def _cmd_experiment(args) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="kgn-bench", description="KGNv2 grasp detection: dataset, training and closed-loop benchmark.")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+# -- the parser: parent parsers hold the options several commands share ------------------------------------
+def _parent(*adders) -> argparse.ArgumentParser:
+    parent = _Parser(add_help=False)
+    for add in adders:
+        add(parent)
+    return parent
 
+
+def _workers(default: int):
+    def add(p):
+        p.add_argument("--workers", type=_int_at_least(1), default=default,
+                       help=f"worker processes (default {default})")
+    return add
+
+
+def _quiet(p):
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _task(p):
+    p.add_argument("task", type=Path, help="task file, or a bundled task's name (single_object, ...)")
+
+
+def _overrides(p):
+    p.add_argument("--trials", type=_int_at_least(1),
+                   help="override the task's [task] trials: per object for single_object tasks (6 objects x "
+                        "N trials), scenes for multi_object tasks")
+    p.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
+
+
+def _settings(what: str):
+    def add(p):
+        p.add_argument("--set", action="append", metavar="SECTION.NAME=VALUE",
+                       help=f"override one setting of {what}, e.g. camera.depth_noise=1 (repeatable)")
+    return add
+
+
+def _weights(p):
+    p.add_argument("--weights", required=True, help="weights file, or a name under assets/weights")
+    p.add_argument("--variant", help="decoding variant (kgnv2, kgnv2_sbranch, kgn, kgn_depth; default: the "
+                                     "variant the weights were trained as)")
+
+
+def _add_data(sub) -> None:
     data = sub.add_parser("data", help="the Primitive Shape dataset")
     dsub = data.add_subparsers(dest="data_command", required=True, parser_class=_Parser)
-
-    gen = dsub.add_parser("generate", help="generate a PS dataset (resumes an interrupted run)")
+    gen = dsub.add_parser("generate", help="generate a PS dataset (resumes an interrupted run)",
+                          parents=[_parent(_workers(1), _quiet)])
     gen.add_argument("--mode", choices=("single", "multi"), required=True,
                      help="single: one random shape per scene; multi: one of each of the six shapes")
     gen.add_argument("--scenes", type=_int_at_least(1), default=1000, help="number of scenes (default 1000)")
     gen.add_argument("--views", type=_int_at_least(1), default=5, help="camera views per scene (default 5)")
     gen.add_argument("--seed", type=_int_at_least(0), default=0, help="dataset seed (default 0)")
     gen.add_argument("--out", type=Path, required=True, help="output folder")
-    gen.add_argument("--workers", type=_int_at_least(1), default=1, help="worker processes (default 1)")
     gen.add_argument("--overwrite", action="store_true", help="replace a dataset with other settings in --out")
-    gen.add_argument("--quiet", action="store_true", help="no progress bar")
     gen.set_defaults(func=_cmd_data_generate)
-
     show = dsub.add_parser("show", help="draw a view's collision-free ground-truth grasps and its depth")
     show.add_argument("dir", type=Path, help="dataset folder")
     show.add_argument("--scene", type=_int_at_least(0), required=True)
@@ -355,20 +392,19 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("--out", type=Path, required=True, help="PNG to write")
     show.set_defaults(func=_cmd_data_show)
 
+
+def _add_perf(sub) -> None:
     perf = sub.add_parser("perf", help="speed measurements")
     psub = perf.add_subparsers(dest="perf_command", required=True, parser_class=_Parser)
-    pdata = psub.add_parser("data", help="dataset generation views/s and its split")
+    pdata = psub.add_parser("data", help="dataset generation views/s and its split", parents=[_parent(_workers(2))])
     pdata.add_argument("--scenes", type=_int_at_least(1), default=20)
-    pdata.add_argument("--workers", type=_int_at_least(1), default=2)
     pdata.add_argument("--mode", choices=("single", "multi"), default="multi")
     pdata.set_defaults(func=_cmd_perf_data)
-    prun = psub.add_parser("run", help="benchmark trials/min and the split (render, detect, select, simulate)")
-    prun.add_argument("task", type=Path, help="task file, or a bundled task's name")
+    prun = psub.add_parser("run", help="benchmark trials/min and the split (render, detect, select, simulate)",
+                           parents=[_parent(_task, _workers(2))])
     prun.add_argument("--detector", default="oracle")
     prun.add_argument("--trials", type=_int_at_least(1), default=2, help="trials per object (default 2)")
-    prun.add_argument("--workers", type=_int_at_least(1), default=2)
     prun.set_defaults(func=_cmd_perf_run)
-
     pdet = psub.add_parser("detector", help="detector frames/s at 640×480 (learned ones: and the split)")
     pdet.add_argument("--variant", default="kgnv2", help="a learned variant or another detector, e.g. antipodal")
     pdet.add_argument("--weights", help="weights file or name under assets/weights (default: the shipped one)")
@@ -377,59 +413,40 @@ def build_parser() -> argparse.ArgumentParser:
     pdet.add_argument("--data", type=Path, help="dataset whose test views to use (default: 4 generated scenes)")
     pdet.set_defaults(func=_cmd_perf_detector)
 
-    run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)")
-    run.add_argument("task", type=Path, help="task file, or a bundled task's name (single_object, ...)")
-    run.add_argument("--detector", required=True,
-                     help="kgnv2, kgn, kgn_depth, antipodal, random, oracle, ... or module:attribute for your own")
-    run.add_argument("--trials", type=_int_at_least(1),
-                     help="override the task's [task] trials: per object for single_object tasks (6 objects x "
-                          "N trials), scenes for multi_object tasks")
-    run.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
-    run.add_argument("--workers", type=_int_at_least(1), default=1)
+
+def _add_closed_loop(sub) -> None:
+    detector_help = "kgnv2, kgn, kgn_depth, antipodal, random, oracle, ... or module:attribute for your own"
+    run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)",
+                         parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _quiet)])
+    run.add_argument("--detector", required=True, help=detector_help)
     run.add_argument("--record", action="store_true", help="write a rerun recording (recording.rrd)")
     run.add_argument("--out", type=Path, help="run folder (default runs/<task>_<detector>_seed<seed>)")
-    run.add_argument("--set", action="append", metavar="SECTION.NAME=VALUE",
-                     help="override one task setting, e.g. camera.depth_noise=1 (repeatable)")
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
-
-    sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)")
-    sw.add_argument("task", type=Path, help="task file, or a bundled task's name")
-    sw.add_argument("--detector", required=True)
+    sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)",
+                        parents=[_parent(_task, _overrides, _workers(1), _quiet)])
+    sw.add_argument("--detector", required=True, help=detector_help)
     sw.add_argument("--param", required=True, help="setting to sweep, e.g. camera.depth_noise")
     sw.add_argument("--values", nargs="+", required=True, help="values, e.g. 0 0.5 1 2")
-    sw.add_argument("--trials", type=_int_at_least(1),
-                    help="override the task's [task] trials (per object for single_object, scenes for multi_object)")
-    sw.add_argument("--seed", type=_int_at_least(0), help="override the task's seed")
-    sw.add_argument("--workers", type=_int_at_least(1), default=1)
     sw.add_argument("--out", type=Path, help="sweep folder (default runs/sweep_<task>_<detector>_<param>)")
-    sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.set_defaults(func=_cmd_sweep)
-
-    bm = sub.add_parser("benchmark", help="run every task x detector of a plan, then write the report")
+    bm = sub.add_parser("benchmark", help="run every task x detector of a plan, then write the report",
+                        parents=[_parent(_workers(2), _settings("every task"), _quiet)])
     bm.add_argument("plan", type=Path, nargs="?", default=Path("benchmark"),
                     help="plan file, or a bundled plan's name (default: the bundled benchmark plan)")
     bm.add_argument("--tasks", nargs="+", help="only these tasks of the plan")
     bm.add_argument("--detectors", nargs="+", help="only these detectors of the plan")
-    bm.add_argument("--workers", type=_int_at_least(1), default=2)
     bm.add_argument("--runs", type=Path, default=Path("runs/benchmark"), help="run folders (default runs/benchmark)")
     bm.add_argument("--out", type=Path, help="report folder (default: the runs folder)")
-    bm.add_argument("--set", action="append", metavar="SECTION.NAME=VALUE",
-                    help="override one setting of every task, e.g. selector.palm_margin=0.01 (repeatable)")
-    bm.add_argument("--quiet", action="store_true", help="no progress bars")
     bm.set_defaults(func=_cmd_benchmark)
-
     rep = sub.add_parser("report", help="the benchmark table, failure reasons and bar chart from run folders")
     rep.add_argument("runs", type=Path, nargs="+", help="run folders, or folders holding run folders")
     rep.add_argument("--out", type=Path, default=Path("results"), help="report folder (default results)")
     rep.set_defaults(func=_cmd_report)
-
     check = sub.add_parser("check", help="fail (exit 1) when a run's rates dropped below a baseline's")
     check.add_argument("run", type=Path, help="run folder holding summary.json")
     check.add_argument("--baseline", type=Path, required=True, help="baseline JSON")
     check.add_argument("--update-baseline", action="store_true", help="write the run's rates as the baseline")
     check.set_defaults(func=_cmd_check)
-
     replay = sub.add_parser("replay", help="open a run's rerun recording, serve it to a browser, or save a copy")
     replay.add_argument("run", type=Path, help="run folder or .rrd file")
     replay.add_argument("--save", type=Path, help="copy the recording here instead of opening the viewer")
@@ -440,41 +457,38 @@ def build_parser() -> argparse.ArgumentParser:
                         help="web viewer port (default 9090; the recording is served on the next port)")
     replay.set_defaults(func=_cmd_replay)
 
-    tr = sub.add_parser("train", help="train a KGN / KGNv2 model from a config (resumes an interrupted run)")
+
+def _add_learning(sub) -> None:
+    tr = sub.add_parser("train", help="train a KGN / KGNv2 model from a config (resumes an interrupted run)",
+                        parents=[_parent(_quiet)])
     tr.add_argument("config", type=Path, help="training config (tasks/train_*.toml, or its bundled name)")
     tr.add_argument("--device", help="torch device (default: cuda when present, else cpu)")
     tr.add_argument("--threads", type=_int_at_least(1), help="CPU threads for torch (default: all cores)")
-    tr.add_argument("--quiet", action="store_true", help="no progress bar")
     tr.set_defaults(func=_cmd_train)
-
     ex = sub.add_parser("export", help="ship a trained checkpoint as weights with a model card")
     ex.add_argument("checkpoint", type=Path, help="a training run's final.pt (or last.pt)")
     ex.add_argument("--name", required=True, help="weights name (kgnv2, kgn, ...)")
     ex.add_argument("--out", type=Path, default=Path("assets/weights"),
                     help="folder (default assets/weights: the shipped weights, run from the repository)")
     ex.set_defaults(func=_cmd_export)
-
     ev = sub.add_parser("eval", help="evaluate detectors")
     esub = ev.add_subparsers(dest="eval_command", required=True, parser_class=_Parser)
-    vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split")
-    vis.add_argument("--weights", required=True, help="weights file, or a name under assets/weights")
-    vis.add_argument("--variant", help="decoding variant (kgnv2, kgnv2_sbranch, kgn, kgn_depth; default: the "
-                                       "variant the weights were trained as)")
+    vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split", parents=[_parent(_weights, _quiet)])
     vis.add_argument("--data", type=Path, required=True, help="dataset folder")
     vis.add_argument("--split", default="test", choices=("train", "test"))
     vis.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
     vis.add_argument("--out", type=Path, help="folder for vision.json and vision.md")
-    vis.add_argument("--quiet", action="store_true", help="no progress bar")
     vis.set_defaults(func=_cmd_eval_vision)
-    shw = esub.add_parser("show", help="draw a detector's keypoint boxes beside the ground truth of one view")
-    shw.add_argument("--weights", required=True, help="weights file, or a name under assets/weights")
-    shw.add_argument("--variant", help="decoding variant (default: the one the weights were trained as)")
+    shw = esub.add_parser("show", help="draw a detector's keypoint boxes beside the ground truth of one view",
+                          parents=[_parent(_weights)])
     shw.add_argument("--data", type=Path, required=True)
     shw.add_argument("--scene", type=_int_at_least(0), required=True)
     shw.add_argument("--view", type=_int_at_least(0), default=0)
     shw.add_argument("--out", type=Path, required=True, help="PNG to write")
     shw.set_defaults(func=_cmd_eval_show)
 
+
+def _add_studies(sub) -> None:
     st = sub.add_parser("study", help="synthetic studies")
     ssub = st.add_subparsers(dest="study_command", required=True, parser_class=_Parser)
     pn = ssub.add_parser("pnp-noise", help="the paper's Fig. 2: IPPE pose error vs distance under keypoint noise")
@@ -483,7 +497,6 @@ def build_parser() -> argparse.ArgumentParser:
     pn.add_argument("--seed", type=_int_at_least(0), default=0)
     pn.add_argument("--out", type=Path, default=Path("results/pnp_noise"), help="writes OUT.csv and OUT.png")
     pn.set_defaults(func=_cmd_study_pnp_noise)
-
     exp = sub.add_parser("experiment", help="the paper's dataset tables from trained weights (no retraining)")
     exp.add_argument("table", choices=("table1", "table2"),
                      help="table1: KGN vs KGNv2, single/multi x single/multi; table2: the ablation")
@@ -494,6 +507,14 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--partial", action="store_true", help="build the table from the models that exist")
     exp.add_argument("--force", action="store_true", help="re-evaluate even when a cached evaluation matches")
     exp.set_defaults(func=_cmd_experiment)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``kgn-bench`` parser: one function per group of commands."""
+    p = _Parser(prog="kgn-bench", description="KGNv2 grasp detection: dataset, training and closed-loop benchmark.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add in (_add_data, _add_perf, _add_closed_loop, _add_learning, _add_studies):
+        add(sub)
     return p
 
 

@@ -15,6 +15,7 @@ __all__ = [
     "axis_align",
     "backproject",
     "backproject_strided",
+    "frame_from_xz",
     "invert_pose",
     "make_pose",
     "matrix_from_quat_wxyz",
@@ -67,6 +68,12 @@ def axis_align(spec: tuple[int, int, int]) -> np.ndarray:
     if not np.isclose(np.linalg.det(R), 1.0):
         raise ValueError(f"axis_align{spec} is not a right-handed rotation")
     return R
+
+
+def frame_from_xz(x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The rotation(s) (..., 3, 3) whose columns are ``x``, ``y = z × x`` and ``z``, for unit ``x ⟂ z``:
+    the grasp frame from its approach (x) and closing (z) axes, or any frame from two of its axes."""
+    return np.stack([x, np.cross(z, x), z], axis=-1)
 
 
 def make_pose(R: np.ndarray | None = None, t: np.ndarray | None = None) -> np.ndarray:

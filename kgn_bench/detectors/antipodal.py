@@ -42,7 +42,7 @@ import cv2
 import numpy as np
 
 from kgn_bench.config import ExecutionConfig
-from kgn_bench.geometry import backproject, backproject_strided, invert_pose
+from kgn_bench.geometry import backproject, backproject_strided, frame_from_xz, invert_pose
 from kgn_bench.gripper import GRIPPER
 
 from .base import Candidates, Observation
@@ -100,11 +100,6 @@ def _smooth_normals(n: np.ndarray, mask: np.ndarray, min_coherence: float = 0.97
     ok = mask & (norm > 1e-6)
     coherent = ok & (norm >= min_coherence * np.maximum(count, 1.0)) & (count >= 4)
     return np.where(ok[..., None], acc / np.maximum(norm, 1e-12)[..., None], 0.0), ok, coherent
-
-
-def _frames(x: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Rotations (..., 3, 3) with columns x, y = z × x, z (x ⟂ z unit vectors)."""
-    return np.stack([x, np.cross(z, x), z], axis=-1)
 
 
 def _perp_basis(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -242,13 +237,13 @@ class AntipodalDetector:
         ta = np.deg2rad(np.linspace(-70.0, 70.0, self.approaches)) if self.approaches > 1 else np.zeros(1)
         xa = np.cos(ta)[None, :, None] * e1[:, None] + np.sin(ta)[None, :, None] * e2[:, None]
         za = np.broadcast_to(n[:, None], xa.shape)
-        ra = _frames(xa, za)
+        ra = frame_from_xz(xa, za)
         ok_a = (np.abs(n[:, 2]) < 0.85)[:, None] & (xa[..., 2] < 0.3)
         xb = -n
         f1, f2 = _perp_basis(xb)
         tb = np.pi * np.arange(self.closings) / self.closings
         zb = np.cos(tb)[None, :, None] * f1[:, None] + np.sin(tb)[None, :, None] * f2[:, None]
-        rb = _frames(np.broadcast_to(xb[:, None], zb.shape), zb)
+        rb = frame_from_xz(np.broadcast_to(xb[:, None], zb.shape), zb)
         ok_b = np.broadcast_to((xb[:, 2] < 0.3)[:, None], zb.shape[:2])
         R = np.concatenate([ra, rb], axis=1).reshape(-1, 3, 3)
         seed_of = np.repeat(np.arange(len(p)), ra.shape[1] + rb.shape[1])

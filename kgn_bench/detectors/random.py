@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kgn_bench.geometry import invert_pose, make_pose
+from kgn_bench.geometry import frame_from_xz, invert_pose, make_pose
 
 from .base import Candidates, Observation
 
@@ -60,7 +60,7 @@ class RandomDetector:
             z /= np.linalg.norm(z)
             a = rng.uniform(0.0, 2 * np.pi)
             z = np.cos(a) * z + np.sin(a) * np.cross(x[k], z)
-            R = np.stack([x[k], np.cross(z, x[k]), z], axis=1)
+            R = frame_from_xz(x[k], z)
             poses[k] = make_pose(R, centres[k] + self.sink * x[k])
         widths = rng.uniform(*self.width_range, n)
         conf = rng.uniform(0.0, 1.0, n)

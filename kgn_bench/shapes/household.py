@@ -38,7 +38,7 @@ from typing import ClassVar
 import numpy as np
 import trimesh
 
-from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix, rot_x, rot_y
+from kgn_bench.geometry import frame_from_xz, make_pose, quat_wxyz_from_matrix, rot_x, rot_y
 from kgn_bench.grasp import GraspSet
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.base import GeomSpec, GraspDensity, RestPose, Shape
@@ -101,7 +101,7 @@ def _z_to(direction: np.ndarray) -> np.ndarray:
     z = _unit(direction)
     helper = _E[0] if abs(z[0]) < 0.9 else _E[1]
     x = _unit(np.cross(helper, z))
-    return np.stack([x, np.cross(z, x), z], axis=1)
+    return frame_from_xz(x, z)
 
 
 def _box(centre, size, R: np.ndarray | None = None) -> GeomSpec:
@@ -155,7 +155,7 @@ def _frames(approach: np.ndarray, closing: np.ndarray, origins: np.ndarray) -> n
     x = _unit(approach)
     z = _unit(closing - np.sum(closing * x, axis=-1, keepdims=True) * x)
     poses = np.zeros((len(x), 4, 4))
-    poses[:, :3, 0], poses[:, :3, 1], poses[:, :3, 2] = x, np.cross(z, x), z
+    poses[:, :3, :3] = frame_from_xz(x, z)
     poses[:, :3, 3], poses[:, 3, 3] = origins, 1.0
     return poses
 
@@ -197,9 +197,9 @@ def _box_family(T_part: np.ndarray, size, density: GraspDensity) -> tuple[np.nda
             x_g = sign * _E[app]
             for close in (a for a in range(3) if a != app):
                 z_g = _E[close]
-                y_g = np.cross(z_g, x_g)
+                R = frame_from_xz(x_g, z_g)
+                y_g = R[:, 1]
                 y_axis = int(np.argmax(np.abs(y_g)))
-                R = np.stack([x_g, y_g, z_g], axis=1)
                 for f in fractions:
                     t = -sign * (d[app] / 2.0 - sink) * _E[app] + f * d[y_axis] * y_g
                     poses.append(T_part @ make_pose(R, t))

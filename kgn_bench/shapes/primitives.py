@@ -18,7 +18,7 @@ from typing import ClassVar
 import numpy as np
 import trimesh
 
-from kgn_bench.geometry import axis_align, make_pose, quat_wxyz_from_matrix, rot_x, rot_y, rot_z
+from kgn_bench.geometry import axis_align, frame_from_xz, make_pose, quat_wxyz_from_matrix, rot_x, rot_y, rot_z
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes.base import GeomSpec, GraspDensity, RestPose, Shape
 from kgn_bench.shapes.meshes import arc, revolve_profile
@@ -166,9 +166,9 @@ class Cuboid(Shape):
                 x_g = sign * np.eye(3)[app]
                 for close in (a for a in range(3) if a != app):
                     z_g = np.eye(3)[close]
-                    y_g = np.cross(z_g, x_g)
+                    R = frame_from_xz(x_g, z_g)
+                    y_g = R[:, 1]
                     y_axis = int(np.argmax(np.abs(y_g)))
-                    R = np.stack([x_g, y_g, z_g], axis=1)
                     for f in fractions:
                         t = -sign * (d[app] / 2.0 - self.SINK_IN) * np.eye(3)[app]
                         t = t + f * d[y_axis] * y_g

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kgn_bench.geometry import make_pose, rot_z
+from kgn_bench.geometry import frame_from_xz, make_pose, rot_z
 from kgn_bench.sim.scene import TABLE_HALF_SIZE, TIMESTEP, PhysicsError, Scene
 
 __all__ = ["PlacementConfig", "SettleStats", "initial_pose", "place_objects", "rectify_axisymmetric", "settle"]
@@ -127,6 +127,6 @@ def rectify_axisymmetric(scene: Scene, max_axis_z: float = 0.9) -> None:
             continue
         x = down - axis * (down @ axis)
         x /= np.linalg.norm(x)
-        R = np.stack([x, np.cross(axis, x), axis], axis=1)
+        R = frame_from_xz(x, axis)
         scene.set_object_pose(i, make_pose(R, T[:3, 3]))
     scene.forward()

@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
-from kgn_bench.geometry import quat_wxyz_from_matrix
+from kgn_bench.geometry import frame_from_xz, quat_wxyz_from_matrix
 from kgn_bench.gripper import GRIPPER, GripperGeometry
 from kgn_bench.resources import arm_xml
 from kgn_bench.sim.scene import GROUP_ROBOT, TABLE_HALF_SIZE, Scene
@@ -115,7 +115,7 @@ def _flange_to_hand_quat() -> np.ndarray:
     """Rotation flange → hand (wxyz): hand x = flange z, hand z = R_z(−45°)·flange y, hand y = z × x."""
     x = np.array([0.0, 0.0, 1.0])
     z = np.array([np.sin(np.pi / 4), np.cos(np.pi / 4), 0.0])
-    return quat_wxyz_from_matrix(np.stack([x, np.cross(z, x), z], axis=1))
+    return quat_wxyz_from_matrix(frame_from_xz(x, z))
 
 
 def build_robot(g: GripperGeometry = GRIPPER) -> mjcf.RootElement:
