@@ -61,8 +61,9 @@ from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q
 
-__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "DepthView", "Selection", "centre_offset", "level_poses", "near_failed",
-           "score_candidates", "search_offsets", "select_grasp"]
+__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "DepthView", "GraspSelector", "Selection", "centre_offset", "level_poses",
+           "near_failed",
+           "score_candidates", "search_offsets", "select_grasp", "valid_candidates"]
 
 REJECTIONS = ("repeat", "width", "collision", "occluded", "enclosure", "ik")
 CENTRE_VIEW_DEG = 45.0
@@ -304,83 +305,124 @@ def valid_candidates(poses: np.ndarray, widths: np.ndarray, confidences: np.ndar
     return finite & orthonormal & proper & bottom
 
 
-def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
-                 points: np.ndarray, ik: IK, cfg: SelectorConfig, execution: ExecutionConfig,
-                 failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
-    """Pick the best feasible candidate among world-frame ``poses`` given observed world ``points``,
-    skipping candidates near the ``failed`` (K, 4, 4) world grasps of earlier attempts; ``view`` (the
-    depth image the points came from) enables the occlusion check. A candidate that fails the gripper prior
-    where it is is tried shifted by ``search_offsets`` (the first shift that passes is kept); its rejection is
-    counted under the check its unshifted pose failed. Candidates whose pose is not a finite rigid transform,
-    or whose width or confidence is not finite, are never executed: they are counted as ``invalid_pose``."""
-    valid = valid_candidates(poses, widths, confidences)
-    poses = np.where(valid[:, None, None], poses, np.eye(4))
-    if cfg.level_deg > 0:
-        poses = level_poses(poses, cfg.level_deg)
-    scores = np.where(valid, score_candidates(np.where(valid, confidences, 0.0), errors, cfg), -np.inf)
-    sel = Selection(index=None, scores=scores)
-    if not valid.all():
-        sel.rejected["invalid_pose"] = int((~valid).sum())  # only when it happens: records stay as they were
-    order = np.argsort(-scores, kind="stable")
-    order = order[valid[order]][: cfg.max_candidates]
-    back = execution.pregrasp_distance
-    ready_closing = ik.tcp_pose(READY_Q)[:3, 2]
-    palm_samples = np.concatenate([_box_samples(b.swept(back)) for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])
-    repeat = near_failed(poses, np.zeros((0, 4, 4)) if failed is None else failed, cfg.retry_distance,
-                         np.deg2rad(cfg.retry_angle_deg))
-    offsets = search_offsets(cfg)
-    # every grasp-frame point a check can look at lies in the boxes' union, moved by the largest shifts
-    margin = np.array([float(np.abs(offsets[:, 0]).max(initial=0.0)) + execution.grasp_depth, 0.0,
-                       float(np.abs(offsets[:, 1]).max(initial=0.0)) + cfg.centre_range]) + 1e-6
-    for k in order:
-        if repeat[k]:
-            sel.rejected["repeat"] += 1
-            continue
-        w = float(widths[k])
-        if not (0.0 < w <= GRIPPER.max_width):
-            sel.rejected["width"] += 1
-            continue
-        open_w = float(GRIPPER.opening(w))
-        boxes = [(_grown(b, cfg.palm_margin) if b.name in ("palm", "wrist") else b).swept(back)
+class GraspSelector:
+    """The selector of one task: built from its ``SelectorConfig`` and ``ExecutionConfig`` and the arm's
+    ``IK``; ``select`` picks the best feasible candidate of one capture.
+
+    For each candidate, best score first: the retry memory (``repeat``), the width, then the gripper prior on
+    the observed cloud (collision, occlusion, enclosure; ``_prior``, with the pose search and the centring),
+    then the reach (IK of the pre-grasp and the grasp, for both symmetric forms; ``_reach``). All poses are
+    world-frame ``T_world_grasp``.
+    """
+
+    def __init__(self, cfg: SelectorConfig, execution: ExecutionConfig, ik: IK) -> None:
+        self.cfg, self.execution, self.ik = cfg, execution, ik
+        self.back = execution.pregrasp_distance
+        self.ready_closing = ik.tcp_pose(READY_Q)[:3, 2]
+        self.palm_samples = np.concatenate([_box_samples(b.swept(self.back))
+                                            for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])
+        self.offsets = search_offsets(cfg)
+        # every grasp-frame point a check can look at lies in the boxes' union, moved by the largest shifts
+        self.margin = np.array([float(np.abs(self.offsets[:, 0]).max(initial=0.0)) + execution.grasp_depth, 0.0,
+                                float(np.abs(self.offsets[:, 1]).max(initial=0.0)) + cfg.centre_range]) + 1e-6
+
+    def select(self, poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
+               points: np.ndarray, failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
+        """Pick the best feasible candidate among world-frame ``poses`` given observed world ``points``,
+        skipping candidates near the ``failed`` (K, 4, 4) world grasps of earlier attempts; ``view`` (the
+        depth image the points came from) enables the occlusion check and the centring. A candidate that
+        fails the gripper prior where it is is tried shifted by ``search_offsets`` (the first shift that passes
+        is kept); its rejection is counted under the check its unshifted pose failed. Candidates whose pose is
+        not a finite rigid transform, or whose width or confidence is not finite, are never executed: they are
+        counted as ``invalid_pose``."""
+        cfg = self.cfg
+        valid = valid_candidates(poses, widths, confidences)
+        poses = np.where(valid[:, None, None], poses, np.eye(4))
+        if cfg.level_deg > 0:
+            poses = level_poses(poses, cfg.level_deg)
+        scores = np.where(valid, score_candidates(np.where(valid, confidences, 0.0), errors, cfg), -np.inf)
+        sel = Selection(index=None, scores=scores)
+        if not valid.all():
+            sel.rejected["invalid_pose"] = int((~valid).sum())  # only when it happens: records stay as they were
+        order = np.argsort(-scores, kind="stable")
+        order = order[valid[order]][: cfg.max_candidates]
+        repeat = near_failed(poses, np.zeros((0, 4, 4)) if failed is None else failed, cfg.retry_distance,
+                             np.deg2rad(cfg.retry_angle_deg))
+        for k in order:
+            if repeat[k]:
+                sel.rejected["repeat"] += 1
+                continue
+            w = float(widths[k])
+            if not (0.0 < w <= GRIPPER.max_width):
+                sel.rejected["width"] += 1
+                continue
+            open_w = float(GRIPPER.opening(w))
+            shifted, code = self._prior(poses[k], w, open_w, points, view)
+            if shifted is None:
+                sel.rejected[_CHECKS[code]] += 1
+                continue
+            reached = self._reach(shifted)
+            if reached is None:
+                sel.rejected["ik"] += 1
+                continue
+            sel.index = int(k)
+            sel.grasp, sel.pregrasp, sel.q_pregrasp, sel.q_grasp = reached
+            sel.width = open_w
+            sel.candidate = poses[k].copy()
+            return sel
+        return sel
+
+    def _prior(self, pose: np.ndarray, w: float, open_w: float, points: np.ndarray, view: DepthView | None
+               ) -> tuple[np.ndarray | None, int]:
+        """The candidate moved by the first search shift that passes the gripper prior, then centred on the
+        observed points between the jaws; ``(None, code)`` with the failed check of the unshifted pose."""
+        cfg, execution = self.cfg, self.execution
+        boxes = [(_grown(b, cfg.palm_margin) if b.name in ("palm", "wrist") else b).swept(self.back)
                  for b in GRIPPER.boxes(open_w)]
-        R = poses[k][:3, :3]
-        local0 = (points - poses[k][:3, 3]) @ R  # observed points in the candidate's grasp frame
+        R = pose[:3, :3]
+        local0 = (points - pose[:3, 3]) @ R  # observed points in the candidate's grasp frame
         lo, hi = _union_bounds([*boxes, GRIPPER.closing_region(open_w)])
-        local0 = local0[np.all((local0 > lo - margin) & (local0 < hi + margin), axis=1)]
-        shifts = np.c_[offsets[:, 0], np.zeros(len(offsets)), offsets[:, 1]]
-        shifts[:, 0] += _grasp_depths(poses[k], shifts, open_w, execution.grasp_depth, cfg.table_clearance)
-        args = (w, local0, boxes, palm_samples, view, cfg)
-        codes = _failures(poses[k], shifts[:1], *args)  # most candidates pass or fail where they are
+        local0 = local0[np.all((local0 > lo - self.margin) & (local0 < hi + self.margin), axis=1)]
+        shifts = np.c_[self.offsets[:, 0], np.zeros(len(self.offsets)), self.offsets[:, 1]]
+        shifts[:, 0] += _grasp_depths(pose, shifts, open_w, execution.grasp_depth, cfg.table_clearance)
+        args = (w, local0, boxes, self.palm_samples, view, cfg)
+        codes = _failures(pose, shifts[:1], *args)  # most candidates pass or fail where they are
         if codes[0] != 0 and len(shifts) > 1:
-            codes = np.concatenate([codes, _failures(poses[k], shifts[1:], *args)])
+            codes = np.concatenate([codes, _failures(pose, shifts[1:], *args)])
         passing = np.flatnonzero(codes == 0)
         if len(passing) == 0:
-            sel.rejected[_CHECKS[codes[0]]] += 1
-            continue
+            return None, int(codes[0])
         shift = shifts[passing[0]]
         if cfg.centre_range > 0 and view is not None:
-            ray = poses[k][:3, 3] + R @ shift - view.camera_pose[:3, 3]
+            ray = pose[:3, 3] + R @ shift - view.camera_pose[:3, 3]
             dz = centre_offset(local0 - shift, open_w, R[:, 2], ray / np.linalg.norm(ray), cfg.centre_range,
                                cfg.enclosed_points)
             centred = shift + np.array([0.0, 0.0, dz])
-            if dz != 0.0 and _failures(poses[k], centred[None], *args)[0] == 0:
+            if dz != 0.0 and _failures(pose, centred[None], *args)[0] == 0:
                 shift = centred
-        pose = poses[k].copy()
-        pose[:3, 3] += R @ shift
+        moved = pose.copy()
+        moved[:3, 3] += R @ shift
+        return moved, 0
+
+    def _reach(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """``(grasp, pregrasp, q_pregrasp, q_grasp)`` for the first of the two symmetric forms of ``pose``
+        (the one whose closing axis is nearer the ready wrist's first) that the arm reaches, else None."""
         flipped = flip_180(pose[None])[0]
-        forms = (pose, flipped) if pose[:3, 2] @ ready_closing >= 0 else (flipped, pose)
+        forms = (pose, flipped) if pose[:3, 2] @ self.ready_closing >= 0 else (flipped, pose)
         for form in forms:
             pre = form.copy()
-            pre[:3, 3] -= back * form[:3, 0]
-            r_pre = ik.solve(pre)
+            pre[:3, 3] -= self.back * form[:3, 0]
+            r_pre = self.ik.solve(pre)
             if not r_pre.ok:
                 continue
-            r_grasp = ik.solve(form, r_pre.q)
+            r_grasp = self.ik.solve(form, r_pre.q)
             if r_grasp.ok:
-                sel.index = int(k)
-                sel.grasp, sel.pregrasp, sel.width = form, pre, open_w
-                sel.candidate = poses[k].copy()
-                sel.q_pregrasp, sel.q_grasp = r_pre.q, r_grasp.q
-                return sel
-        sel.rejected["ik"] += 1
-    return sel
+                return form, pre, r_pre.q, r_grasp.q
+        return None
+
+
+def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
+                 points: np.ndarray, ik: IK, cfg: SelectorConfig, execution: ExecutionConfig,
+                 failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
+    """``GraspSelector(cfg, execution, ik).select(...)`` in one call."""
+    return GraspSelector(cfg, execution, ik).select(poses, widths, confidences, errors, points, failed, view)

@@ -13,7 +13,6 @@ something other than ``Candidates``, a ``detector_error`` attempt.
 
 from __future__ import annotations
 
-import itertools
 import time
 from pathlib import Path
 from typing import Any
@@ -32,7 +31,7 @@ from kgn_bench.sim.robot import PARK_Q, add_workcell, on_table
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
 
 from .attempt import AttemptResult, execute_grasp
-from .selector import DepthView, Selection, select_grasp
+from .selector import DepthView, GraspSelector, Selection
 
 __all__ = ["TIMING_KEYS", "camera_pose", "run_trial", "trial_objects"]
 
@@ -111,47 +110,66 @@ def _fault_record(task: TaskConfig, index: int, reason: str, detail: str, clock:
             "timing": {k: round(v, 4) for k, v in clock.totals.items()}}
 
 
+def _prepare_detector(detector: Detector, task: TaskConfig, index: int, scene: Scene) -> None:
+    """The task's execution settings (``configure``), the trial's seed (``reset``) and, for a privileged
+    detector, the simulator (``attach``)."""
+    configure = getattr(detector, "configure", None)
+    if configure is not None:
+        configure(task.execution)
+    detector.reset([task.seed, index])
+    if detector.privileged:
+        detector.attach(scene)  # type: ignore[attr-defined]
+
+
+def _open_recording(record: Path | None, task: TaskConfig, index: int, scene: Scene, executor: Executor):
+    if record is None:
+        from kgn_bench.viz.recording import NO_RECORDING
+
+        return NO_RECORDING
+    from kgn_bench.viz.recording import TrialRecording
+
+    return TrialRecording(record, f"{task.name}/trial_{index:05d}", scene.model, scene.data, executor, RECORD_EVERY)
+
+
 def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: Path | None = None) -> dict[str, Any]:
     """Run trial ``index`` of ``task`` with ``detector``; returns its JSON record."""
     clock = _Clock()
     t = time.perf_counter()
-    recorder = None
     try:
         scene, executor = _build_scene(task, index, ik)
     except PhysicsError as e:
         names = [o.shape.name for o in trial_objects(task, index, np.random.default_rng([task.seed, index]))]
         clock.add("setup", t)
         return _fault_record(task, index, "physics_error", f"no stable scene: {e}", clock, names, names)
-    if record is not None:
-        from kgn_bench.viz.recording import Recorder
-
-        recorder = Recorder(record, f"{task.name}/trial_{index:05d}")
-        recorder.log_geometry(scene.model)
-        recorder.log_state(scene.model, scene.data)
-        ticks = itertools.count(1)
-
-        def on_tick() -> None:
-            if next(ticks) % RECORD_EVERY == 0:
-                recorder.log_state(scene.model, scene.data)
-
-        executor.on_tick = on_tick
+    recording = _open_recording(record, task, index, scene, executor)
     names = [o.shape.name for o in scene.objects]
     placed_names = [name for i, name in enumerate(names) if on_table(scene, i)]
     try:
-        configure = getattr(detector, "configure", None)
-        if configure is not None:  # the task's execution settings (pre-grasp distance, ...) reach the detector
-            configure(task.execution)
-        detector.reset([task.seed, index])
-        if detector.privileged:
-            detector.attach(scene)  # type: ignore[attr-defined]
+        _prepare_detector(detector, task, index, scene)
     except Exception as e:  # a detector bug must not stop the run: record it
-        if recorder is not None:
-            recorder.close()
+        recording.close()
         clock.add("setup", t)
         return _fault_record(task, index, "detector_error", f"reset: {_error_line(e)}", clock, names, placed_names)
+    clock.add("setup", t)
+    attempts = _episode(task, index, scene, executor, detector, clock, names, recording)
+    recording.close()
+    return {
+        "index": index,
+        "protocol": task.protocol,
+        "objects": names,
+        "placed": len(placed_names),
+        "placed_objects": placed_names,
+        "removed": int(sum(a["success"] for a in attempts)),
+        "attempts": attempts,
+        "timing": {k: round(v, 4) for k, v in clock.totals.items()},
+    }
+
+
+def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, detector: Detector, clock: _Clock,
+             names: list[str], recording) -> list[dict[str, Any]]:
+    """Capture, detect, select and execute until the protocol ends; returns the attempt records."""
     cam = camera_pose(task)
     attempts: list[dict[str, Any]] = []
-    t = clock.add("setup", t)
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
     consecutive = 0
     failed: list[np.ndarray] = []  # grasps (world; executed and as chosen) that failed in this trial
@@ -160,16 +178,8 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
         while len(attempts) < max_attempts and consecutive < task.execution.max_consecutive_failures:
             if not any(on_table(scene, i) for i in range(len(names))):
                 break
-            t = time.perf_counter()
-            view = renderer.render(cam)
-            depth = view.depth
-            if noise is not None:
-                rng = np.random.default_rng([task.seed, index, len(attempts)])
-                depth = noise.apply(depth, scene.intrinsics.fx, rng)
-            obs = Observation(view.rgb, depth, scene.intrinsics, cam)
-            t = clock.add("render", t)
-            if recorder is not None:
-                recorder.log_observation(view.rgb, depth, scene.intrinsics.K, cam, scene.data.time)
+            obs = _capture(renderer, scene, cam, noise, np.random.default_rng([task.seed, index, len(attempts)]),
+                           clock, recording)
             try:
                 attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
                                                np.array(failed).reshape(-1, 4, 4))
@@ -178,30 +188,26 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
             attempts.append(attempt)
             if not attempt["success"] and sel is not None:
                 failed.extend(sel.tried)
-            if recorder is not None:
-                if cands is not None and len(cands):
-                    recorder.log_candidates(cands.world_poses(cam), cands.widths, sel.scores, sel.index,
-                                            scene.data.time)
-                outcome = "success" if attempt["success"] else attempt["reason"]
-                what = f" ({attempt['object']})" if attempt["object"] else ""
-                recorder.log_outcome(f"attempt {len(attempts)}: {outcome}{what} {attempt['detail']}".strip(),
-                                     scene.data.time)
+            shown = cands is not None and len(cands) > 0
+            recording.attempt(len(attempts), attempt, cands.world_poses(cam) if shown else None,
+                              cands.widths if shown else None, sel.scores if shown else None,
+                              sel.index if shown else None)
             consecutive = 0 if attempt["success"] else consecutive + 1
             if attempt["reason"] == "physics_error":
                 break
-    if recorder is not None:
-        recorder.close()
-    removed = sum(a["success"] for a in attempts)
-    return {
-        "index": index,
-        "protocol": task.protocol,
-        "objects": names,
-        "placed": len(placed_names),
-        "placed_objects": placed_names,
-        "removed": int(removed),
-        "attempts": attempts,
-        "timing": {k: round(v, 4) for k, v in clock.totals.items()},
-    }
+    return attempts
+
+
+def _capture(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | None,
+             rng: np.random.Generator, clock: _Clock, recording) -> Observation:
+    """Render the task camera's view (with the depth model, if any) as the detector's observation."""
+    t = time.perf_counter()
+    view = renderer.render(cam)
+    depth = view.depth if noise is None else noise.apply(view.depth, scene.intrinsics.fx, rng)
+    obs = Observation(view.rgb, depth, scene.intrinsics, cam)
+    clock.add("render", t)
+    recording.observation(view.rgb, depth, scene.intrinsics.K, cam)
+    return obs
 
 
 def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,
@@ -222,9 +228,10 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
     else:
         t = clock.add("detect", t)
         points = obs.points_world(stride=task.selector.point_stride)
-        sel = select_grasp(cands.world_poses(obs.camera_pose), cands.widths, cands.confidences,
-                           cands.reprojection_errors, points, executor.ik, task.selector, task.execution,
-                           failed, DepthView(obs.depth, obs.intrinsics.K, obs.camera_pose))
+        selector = GraspSelector(task.selector, task.execution, executor.ik)
+        sel = selector.select(cands.world_poses(obs.camera_pose), cands.widths, cands.confidences,
+                              cands.reprojection_errors, points, failed,
+                              DepthView(obs.depth, obs.intrinsics.K, obs.camera_pose))
         t = clock.add("select", t)
         if sel.index is None:
             result = AttemptResult(sel.reason or "no_candidate")
