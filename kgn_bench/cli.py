@@ -272,6 +272,23 @@ def _cmd_eval_vision(args) -> int:
     return 0
 
 
+def _cmd_eval_errors(args) -> int:
+    from kgn_bench.detectors.kgn import KGNDetector
+    from kgn_bench.eval.errors import decompose_dataset, markdown, write_errors
+
+    _writable(args.out)
+    detector = KGNDetector(args.variant, args.weights)
+    table = decompose_dataset(detector, args.data, split=args.split, views=args.views, progress=not args.quiet)
+    title = f"Error decomposition: {args.weights} ({detector.name}) on {args.data} {args.split}"
+    print(markdown(table.summary(), title))
+    if args.out:
+        meta = {"weights": str(args.weights), "variant": detector.name, "data": str(args.data), "split": args.split,
+                "views": args.views}
+        paths = write_errors(table, args.out, title, meta)
+        print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 def _cmd_perf_detector(args) -> int:
     from kgn_bench.perf import perf_detector
 
@@ -479,6 +496,13 @@ def _add_learning(sub) -> None:
     vis.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
     vis.add_argument("--out", type=Path, help="folder for vision.json and vision.md")
     vis.set_defaults(func=_cmd_eval_vision)
+    err = esub.add_parser("errors", help="split each prediction's error into centre, ray distance, rotation, width",
+                          parents=[_parent(_weights, _quiet)])
+    err.add_argument("--data", type=Path, required=True, help="dataset folder")
+    err.add_argument("--split", default="test", choices=("train", "test"))
+    err.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
+    err.add_argument("--out", type=Path, help="folder for errors.json, errors.md and errors.png (CDF plots)")
+    err.set_defaults(func=_cmd_eval_errors)
     shw = esub.add_parser("show", help="draw a detector's keypoint boxes beside the ground truth of one view",
                           parents=[_parent(_weights)])
     shw.add_argument("--data", type=Path, required=True)

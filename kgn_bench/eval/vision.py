@@ -63,11 +63,14 @@ __all__ = [
     "SHAPES",
     "THRESHOLDS",
     "ImageCounts",
+    "TestView",
     "Threshold",
     "VisionMetrics",
+    "detector_call",
     "evaluate_dataset",
     "evaluate_image",
     "grasp_matches",
+    "iter_views",
     "pose_errors",
 ]
 
@@ -373,6 +376,81 @@ class VisionMetrics:
 # -- the dataset --------------------------------------------------------------------------------
 
 
+@dataclass
+class TestView:
+    """One image of a split with its ground truth: the ``Observation`` (RGB, depth, intrinsics, camera
+    pose; no mask), the scene's GT grasps per object (world frame, collision-labelled) and object types."""
+
+    scene: int
+    view: int
+    observation: Observation
+    gt: list[GraspSet]
+    types: list[str]
+
+
+def iter_views(data_dir: Path, split: str = "test", views: int | None = None, density: GraspDensity = EVAL_DENSITY,
+               seconds: dict[str, float] | None = None):
+    """The split's images in order (scenes in split order, views in order), at most ``views`` of them, and
+    the number that will come: ``(total, generator of TestView)``. Ground truth is regenerated once per scene
+    at ``density``; ``seconds`` (if given) accumulates ``read`` and ``ground_truth`` time."""
+    root = Path(data_dir)
+    manifest = read_manifest(root)
+    scenes = read_split(root, split)
+    if not scenes:
+        raise DatasetError(f"split {split!r} of {root} has no scenes")
+    if views is not None and views < 1:
+        raise ValueError(f"views must be ≥ 1, got {views}")
+    available = len(scenes) * int(manifest.get("views", 1))
+    total = available if views is None else min(views, available)
+    clock = seconds if seconds is not None else {}
+
+    def generate():
+        done = 0
+        for scene in scenes:
+            if done >= total:
+                return
+            folder = scene_dir(root, scene)
+            t0 = time.perf_counter()
+            annotation = SceneAnnotation.load(folder / "scene.json")
+            t1 = time.perf_counter()
+            gt = relabel_grasps(annotation, density)
+            clock["read"] = clock.get("read", 0.0) + t1 - t0
+            clock["ground_truth"] = clock.get("ground_truth", 0.0) + time.perf_counter() - t1
+            types = [o.type for o in annotation.objects]
+            for view in range(len(annotation.camera_poses)):
+                if done >= total:
+                    return
+                t0 = time.perf_counter()
+                rgbd = read_view(folder, view)
+                obs = Observation(rgbd.rgb, rgbd.depth, annotation.intrinsics, annotation.camera_poses[view])
+                clock["read"] = clock.get("read", 0.0) + time.perf_counter() - t0
+                done += 1
+                yield TestView(scene, view, obs, gt, types)
+
+    return total, generate()
+
+
+def detector_call(detect: Detector | Callable[[Observation], Candidates]) -> Callable[[TestView], Candidates]:
+    """``detect`` as a function of a ``TestView``: a ``Detector`` is reset with ``[scene, view]`` first (so
+    seeded detectors are deterministic), a plain callable is called; anything but ``Candidates`` is an error."""
+    if isinstance(detect, Detector):
+        call, reset = detect.detect, detect.reset
+    elif callable(detect):
+        call, reset = detect, None
+    else:
+        raise TypeError(f"detect must be a Detector or a callable, got {type(detect).__name__}")
+
+    def run(item: TestView) -> Candidates:
+        if reset is not None:
+            reset([item.scene, item.view])
+        candidates = call(item.observation)
+        if not isinstance(candidates, Candidates):
+            raise TypeError(f"the detector returned {type(candidates).__name__}, expected Candidates")
+        return candidates
+
+    return run
+
+
 def evaluate_dataset(
     detect: Detector | Callable[[Observation], Candidates],
     data_dir: Path,
@@ -390,59 +468,22 @@ def evaluate_dataset(
     world frame as ``camera_pose @ T_cam_grasp``. Ground truth is regenerated once per scene at
     ``density``. ``views`` caps the total number of images (scenes in split order, views in order).
     """
-    root = Path(data_dir)
-    manifest = read_manifest(root)
-    scenes = read_split(root, split)
-    if not scenes:
-        raise DatasetError(f"split {split!r} of {root} has no scenes")
-    if views is not None and views < 1:
-        raise ValueError(f"views must be ≥ 1, got {views}")
-    available = len(scenes) * int(manifest.get("views", 1))
-    total = available if views is None else min(views, available)
-    if isinstance(detect, Detector):
-        call, reset = detect.detect, detect.reset
-    elif callable(detect):
-        call, reset = detect, None
-    else:
-        raise TypeError(f"detect must be a Detector or a callable, got {type(detect).__name__}")
-
-    metrics = VisionMetrics.empty(thresholds)
+    run = detector_call(detect)
     seconds = dict.fromkeys(("read", "ground_truth", "detect", "match"), 0.0)
+    total, items = iter_views(data_dir, split, views, density, seconds)
+    metrics = VisionMetrics.empty(thresholds)
     bar = Progress(total, f"eval vision {split}", unit="images", enabled=progress)
     middle = len(metrics.counts.thresholds) // 2
-    done = 0
-    for scene in scenes:
-        if done >= total:
-            break
-        folder = scene_dir(root, scene)
-        t0 = time.perf_counter()
-        annotation = SceneAnnotation.load(folder / "scene.json")
+    for item in items:
         t1 = time.perf_counter()
-        gt = relabel_grasps(annotation, density)
-        types = [o.type for o in annotation.objects]
-        seconds["read"] += t1 - t0
-        seconds["ground_truth"] += time.perf_counter() - t1
-        for view in range(len(annotation.camera_poses)):
-            if done >= total:
-                break
-            t0 = time.perf_counter()
-            rgbd = read_view(folder, view)
-            observation = Observation(rgbd.rgb, rgbd.depth, annotation.intrinsics, annotation.camera_poses[view])
-            t1 = time.perf_counter()
-            if reset is not None:
-                reset([scene, view])
-            candidates = call(observation)
-            if not isinstance(candidates, Candidates):
-                raise TypeError(f"the detector returned {type(candidates).__name__}, expected Candidates")
-            t2 = time.perf_counter()
-            metrics.add(evaluate_image(candidates.world_poses(observation.camera_pose), gt, types, thresholds))
-            t3 = time.perf_counter()
-            seconds["read"] += t1 - t0
-            seconds["detect"] += t2 - t1
-            seconds["match"] += t3 - t2
-            done += 1
-            c = metrics.counts
-            gsr = _rate(int(c.credited[middle].sum()), c.predictions)
-            bar.update(extra=f"GSR@{c.thresholds[middle].label} {_pct(gsr)}%")
+        candidates = run(item)
+        t2 = time.perf_counter()
+        metrics.add(evaluate_image(candidates.world_poses(item.observation.camera_pose), item.gt, item.types,
+                                   thresholds))
+        seconds["detect"] += t2 - t1
+        seconds["match"] += time.perf_counter() - t2
+        c = metrics.counts
+        gsr = _rate(int(c.credited[middle].sum()), c.predictions)
+        bar.update(extra=f"GSR@{c.thresholds[middle].label} {_pct(gsr)}%")
     metrics.seconds = seconds
     return metrics

@@ -33,6 +33,7 @@ class Line:
     y: Sequence[float]
     color: int = 0
     dashed: bool = False
+    markers: bool = True
 
 
 @dataclass(frozen=True)
@@ -96,7 +97,7 @@ def line_panels(panels: Sequence[Panel], *, suptitle: str | None = None) -> Figu
     for ax, panel in zip(axes, panels):
         for line in panel.lines:
             ax.plot(line.x, line.y, color=_tab10(line.color), linestyle="--" if line.dashed else "-",
-                    marker="o", markersize=2.5, linewidth=1.2, label=line.label)
+                    marker="o" if line.markers else None, markersize=2.5, linewidth=1.2, label=line.label)
         if panel.log_y:
             ax.set_yscale("log")
         ax.set_title(panel.title, fontsize=9)

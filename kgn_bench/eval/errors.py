@@ -1,0 +1,193 @@
+"""Where the 1 cm misses come from: each prediction's error against its nearest ground-truth grasp, split
+into the terms the network predicts separately.
+
+Frames: the grasp centres of a prediction ``p`` and of its nearest GT grasp ``g`` are taken in the
+camera frame (OpenCV axes, ``T_cam_grasp = T_world_cam⁻¹ · T_world_grasp``). The nearest GT grasp (free or
+colliding, of any object of the image) minimises ``d_t / δ + d_R / θ`` at the first threshold (1 cm, 20°),
+so it is the one the prediction came closest to matching. The terms:
+
+* **centre (image plane)**: the pixel distance between the projections of ``p`` and ``g``, and the same
+  distance as a length at the GT grasp's depth, ``e_⊥ = px · z_g / f`` (cm): what the heatmap peak, the
+  sub-pixel offset and the keypoints decide;
+* **distance along the ray**: ``e_∥ = ‖p‖ − ‖g‖`` (cm): what the scale head (or, for KGN, PnP's translation)
+  decides;
+* **rotation**: the symmetric geodesic angle ``d_R`` (degrees, the 180° flip about the approach is the same
+  grasp): what the orientation bin and the keypoints decide;
+* **width**: ``w_p − w_g`` (cm). The vision metrics do not score the width; it is reported because the closed
+  loop uses it.
+
+"Share of 1 cm failures each term alone would cause": the fraction of predictions that would fail the
+(1 cm, 20°) match with that term's error alone (``|e_⊥| ≥ 1 cm``, ``|e_∥| ≥ 1 cm``, ``d_R ≥ 20°``), and the
+same fraction among the predictions that do fail. Predictions are attributed to the shape of the nearest GT
+grasp's object.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kgn_bench.geometry import invert_pose, project, transform_points
+from kgn_bench.grasp import GraspSet
+from kgn_bench.io import atomic_write_text
+from kgn_bench.progress import Progress
+from kgn_bench.types import Candidates, Observation
+
+from .vision import SHAPES, THRESHOLDS, detector_call, iter_views, pose_errors
+
+__all__ = ["TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image", "markdown", "write_errors"]
+
+TERMS = ("centre_px", "centre_cm", "ray_cm", "rotation_deg", "width_cm")
+"""The columns of each prediction's error row."""
+_LIMITS = {"centre_cm": 1.0, "ray_cm": 1.0, "rotation_deg": 20.0}
+"""What each term alone must stay under for the (1 cm, 20°) match (translation in cm, rotation in degrees)."""
+
+
+@dataclass
+class ErrorTable:
+    """One row per prediction: the ``TERMS`` errors, whether it matched at (1 cm, 20°), and its shape."""
+
+    rows: list[np.ndarray] = field(default_factory=list)
+    matched: list[np.ndarray] = field(default_factory=list)
+    shapes: list[np.ndarray] = field(default_factory=list)
+
+    def add(self, errors: np.ndarray, matched: np.ndarray, shapes: np.ndarray) -> None:
+        self.rows.append(errors)
+        self.matched.append(matched)
+        self.shapes.append(shapes)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not self.rows:
+            return np.zeros((0, len(TERMS))), np.zeros(0, dtype=bool), np.zeros(0, dtype="<U16")
+        return np.concatenate(self.rows), np.concatenate(self.matched), np.concatenate(self.shapes)
+
+    def summary(self) -> dict[str, Any]:
+        """Per shape (and ``all``): predictions, 1 cm GSR, median / 90th percentile of each term, and the
+        share of predictions (and of failures) each term alone would fail."""
+        errors, matched, shapes = self.arrays()
+        out: dict[str, Any] = {}
+        for name in ("all", *SHAPES):
+            sel = np.ones(len(errors), dtype=bool) if name == "all" else shapes == name
+            if not sel.any():
+                continue
+            e, m = errors[sel], matched[sel]
+            row: dict[str, Any] = {"predictions": int(sel.sum()), "gsr_1cm": float(m.mean())}
+            for j, term in enumerate(TERMS):
+                col = np.abs(e[:, j])
+                row[term] = {"median": float(np.median(col)), "p90": float(np.percentile(col, 90))}
+            for term, limit in _LIMITS.items():
+                alone = np.abs(e[:, TERMS.index(term)]) >= limit
+                row[term]["fails_alone"] = float(alone.mean())
+                row[term]["share_of_failures"] = float(alone[~m].mean()) if (~m).any() else None
+            out[name] = row
+        return out
+
+
+def decompose_image(pred_world: np.ndarray, pred_widths: np.ndarray, gt: list[GraspSet], types: list[str],
+                    obs: Observation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The error rows (N, len(TERMS)) of one image's predictions, their (1 cm, 20°) match against the free
+    GT grasps, and the shape each is attributed to."""
+    grasps = GraspSet.concatenate(list(gt))
+    n = len(pred_world)
+    if n == 0 or len(grasps) == 0:
+        return np.zeros((0, len(TERMS))), np.zeros(0, dtype=bool), np.zeros(0, dtype="<U16")
+    owner = np.repeat(np.arange(len(gt)), [len(g) for g in gt])
+    first = THRESHOLDS[0]
+    d_t, d_r = pose_errors(pred_world, grasps.poses)
+    nearest = np.argmin(d_t / first.translation + d_r / first.rotation, axis=1)
+    matched = ((d_t < first.translation) & (d_r < first.rotation) & ~grasps.collides[None, :]).any(axis=1)
+    cam_T_world = invert_pose(obs.camera_pose)
+    p = transform_points(cam_T_world, pred_world[:, :3, 3])
+    g = transform_points(cam_T_world, grasps.poses[nearest, :3, 3])
+    K = obs.intrinsics.K
+    px = np.linalg.norm(project(p, K) - project(g, K), axis=1)
+    errors = np.stack([
+        px,
+        100.0 * px * g[:, 2] / K[0, 0],
+        100.0 * (np.linalg.norm(p, axis=1) - np.linalg.norm(g, axis=1)),
+        np.degrees(d_r[np.arange(n), nearest]),
+        100.0 * (pred_widths - grasps.widths[nearest]),
+    ], axis=1)
+    return errors, matched, np.array([types[i] for i in owner[nearest]], dtype="<U16")
+
+
+def decompose_dataset(detect: Callable[[Observation], Candidates], data_dir: Path, split: str = "test",
+                      views: int | None = None, progress: bool = True) -> ErrorTable:
+    """The ``ErrorTable`` of a detector over a split (the first ``views`` images)."""
+    run = detector_call(detect)
+    total, items = iter_views(data_dir, split, views)
+    table = ErrorTable()
+    bar = Progress(total, f"eval errors {split}", unit="images", enabled=progress)
+    hits = predictions = 0
+    for item in items:
+        cands = run(item)
+        errors, matched, shapes = decompose_image(cands.world_poses(item.observation.camera_pose), cands.widths,
+                                                  item.gt, item.types, item.observation)
+        table.add(errors, matched, shapes)
+        hits, predictions = hits + int(matched.sum()), predictions + len(matched)
+        bar.update(extra=f"GSR@1cm {100 * hits / max(predictions, 1):.0f}%")
+    return table
+
+
+def markdown(summary: dict[str, Any], title: str) -> str:
+    """The table of ``ErrorTable.summary``: medians (90th percentiles) and the 1 cm failure shares."""
+    lines = [f"# {title}", "",
+             "Median (90th percentile) absolute error of each prediction against its nearest GT grasp; "
+             "\"alone\" = share of predictions that term alone would fail at 1 cm / 20° (share of the actual "
+             "failures in brackets).", "",
+             "| shape | predictions | GSR 1 cm | centre px | centre cm | along ray cm | rotation ° | width cm | "
+             "centre alone | ray alone | rotation alone |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def share(x: dict) -> str:
+        f = x.get("share_of_failures")
+        return f"{100 * x['fails_alone']:.0f} % ({'n/a' if f is None else f'{100 * f:.0f} %'})"
+
+    for name, row in summary.items():
+        cells = [f"{row[t]['median']:.2f} ({row[t]['p90']:.2f})" for t in TERMS]
+        lines.append(f"| {name} | {row['predictions']} | {100 * row['gsr_1cm']:.1f} % | " + " | ".join(cells)
+                     + f" | {share(row['centre_cm'])} | {share(row['ray_cm'])} | {share(row['rotation_deg'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def cdf_figure(table: ErrorTable, title: str):
+    """Cumulative distributions of the four terms, one line per shape."""
+    from kgn_bench.viz.figures import Line, Panel, line_panels
+
+    errors, _, shapes = table.arrays()
+    panels = []
+    for term, label, limit in (("centre_cm", "centre error in the image plane (cm)", 1.0),
+                               ("ray_cm", "distance error along the ray (cm)", 1.0),
+                               ("rotation_deg", "rotation error (°)", 20.0), ("width_cm", "width error (cm)", 1.0)):
+        col = np.abs(errors[:, TERMS.index(term)])
+        lines = []
+        for k, name in enumerate(("all", *SHAPES)):
+            v = np.sort(col if name == "all" else col[shapes == name])
+            if len(v):
+                lines.append(Line(name, v, np.arange(1, len(v) + 1) / len(v), color=k, dashed=name == "all",
+                                  markers=False))
+        lines.append(Line(f"1 cm / 20° limit ({limit:g})", [limit, limit], [0.0, 1.0], color=7, dashed=True,
+                          markers=False))
+        panels.append(Panel(label, label.split(" (")[0], "fraction of predictions", lines))
+    fig = line_panels(panels, suptitle=title)
+    for ax in fig.axes:
+        ax.set_xscale("log")
+    return fig
+
+
+def write_errors(table: ErrorTable, out: Path, title: str, meta: dict[str, Any]) -> list[Path]:
+    """``out``/errors.json, errors.md and errors.png."""
+    from kgn_bench.viz.figures import save_figure
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = table.summary()
+    atomic_write_text(out / "errors.json", json.dumps({**meta, "summary": summary}, indent=1) + "\n")
+    atomic_write_text(out / "errors.md", markdown(summary, title))
+    save_figure(cdf_figure(table, title), out / "errors.png")
+    return [out / "errors.json", out / "errors.md", out / "errors.png"]
