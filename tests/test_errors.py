@@ -43,7 +43,7 @@ def test_decomposition_of_a_real_detector(tiny_dataset, tmp_path):
 
     root, _ = tiny_dataset
     table = decompose_dataset(KGNDetector("kgnv2"), root, views=2, progress=False)
-    errors, matched, shapes = table.arrays()
+    errors, _, shapes = table.arrays()
     assert len(errors) > 0 and np.all(np.isfinite(errors)) and set(shapes) <= {"cuboid", "cylinder", "ring", "stick",
                                                                                "sphere", "semi_sphere"}
     paths = write_errors(table, tmp_path / "e", "test", {"views": 2})
