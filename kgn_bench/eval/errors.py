@@ -173,7 +173,7 @@ def cdf_figure(table: ErrorTable, title: str):
                                   markers=False))
         lines.append(Line(f"1 cm / 20° limit ({limit:g})", [limit, limit], [0.0, 1.0], color=7, dashed=True,
                           markers=False))
-        panels.append(Panel(label, label.split(" (")[0], "fraction of predictions", lines))
+        panels.append(Panel(label.split(" (")[0], label, "fraction of predictions", lines))
     fig = line_panels(panels, suptitle=title)
     for ax in fig.axes:
         ax.set_xscale("log")
