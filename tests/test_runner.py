@@ -376,3 +376,26 @@ def test_the_tasks_execution_settings_reach_the_detectors(tmp_path):
         detector = make_detector(name)
         run_trial(task, 0, detector, ik)
         assert getattr(detector, "pregrasp_distance", getattr(detector, "approach", None)) == 0.15, name
+
+
+@pytest.fixture
+def tiny_disk(tmp_path):
+    """A 64 KB tmpfs with 8 KB free (skipped where mounting is not allowed)."""
+    import subprocess
+
+    mount = tmp_path / "disk"
+    mount.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mount)],
+                      capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    (mount / "pad").write_bytes(b"\0" * 56 * 1024)
+    yield mount
+    subprocess.run(["umount", str(mount)], check=True)
+
+
+def test_a_full_disk_is_one_line_naming_the_file(tiny_disk, tmp_path, capsys):
+    out = tiny_disk / "run"
+    argv = ["run", str(_small_task(tmp_path)), "--detector", "oracle", "--trials", "2", "--out", str(out), "--quiet"]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == f"kgn-bench: error: cannot write {out}/trials.jsonl: disk full\n"
+    assert read_trials(out / "trials.jsonl") == [] or len(read_trials(out / "trials.jsonl")) < 2  # nothing corrupt

@@ -29,8 +29,8 @@ from typing import Any
 
 from kgn_bench.config import TaskConfig
 from kgn_bench.environment import environment
-from kgn_bench.errors import KGNBenchError
-from kgn_bench.io import atomic_write_text
+from kgn_bench.errors import KGNBenchError, OutputError
+from kgn_bench.io import atomic_write_text, describe_os_error
 from kgn_bench.pool import run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.threads import pin_worker_threads, trial_threads
@@ -245,10 +245,13 @@ def _run_locked(task: TaskConfig, detector: str, instance: Any, out: Path, ident
             if tmp.is_file():
                 os.replace(tmp, rec_dir / f"trial_{rec['index']:05d}.rrd")
         line = json.dumps(rec, sort_keys=True) + "\n"
-        with open(trials_path, "a") as f:
-            f.write(line)
-            f.flush()
-            os.fsync(f.fileno())
+        try:
+            with open(trials_path, "a") as f:
+                f.write(line)
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as e:  # a cut-short line is dropped on the next resume
+            raise OutputError(describe_os_error(e, trials_path)) from None
         records.append(rec)
         bar.update(1, _running_rates(records))
 

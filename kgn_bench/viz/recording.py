@@ -486,7 +486,10 @@ class Recorder:
             self._send_states()
             self._stream.flush()
         except (RuntimeError, OSError) as e:
-            raise RecordingError(f"cannot write recording {self.path}: {str(e).strip().splitlines()[0]}") from None
+            reason = str(e).strip().splitlines()[0]
+            if shutil.disk_usage(self.path.parent).free < (1 << 20):
+                reason = "disk full"  # rerun's writer thread stops without saying why
+            raise RecordingError(f"cannot write recording {self.path}: {reason}") from None
         finally:
             self._stream.disconnect()
             self._closed = True
