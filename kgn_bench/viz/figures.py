@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import os
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -59,10 +60,10 @@ def save_figure(fig: Figure, path: str | os.PathLike[str]) -> None:
 
 
 def bar_chart(groups: Sequence[str], series: Sequence[str], values: np.ndarray, lows: np.ndarray,
-              highs: np.ndarray, *, title: str, ylabel: str, ylim: tuple[float, float] = (0.0, 105.0)) -> Figure:
+              highs: np.ndarray, *, title: str, ylabel: str, ylim: tuple[float, float] = (0.0, 108.0)) -> Figure:
     """Grouped bars: ``values`` (G, S) for G groups on the x axis and S series (one colour each), with
     whiskers from ``lows`` to ``highs`` (e.g. Wilson 95 % intervals) and the value printed above each bar.
-    NaN values leave a gap (a detector that has no run for that column)."""
+    NaN values leave a gap (a detector that has no run for that column). Group labels wrap at 18 characters."""
     values, lows, highs = (np.asarray(a, dtype=float) for a in (values, lows, highs))
     if values.shape != (len(groups), len(series)) or lows.shape != values.shape or highs.shape != values.shape:
         raise ValueError(f"values, lows and highs must be ({len(groups)}, {len(series)})")
@@ -77,9 +78,9 @@ def bar_chart(groups: Sequence[str], series: Sequence[str], values: np.ndarray, 
         err = np.vstack([v - lows[ok, j], highs[ok, j] - v])
         ax.bar(xs, v, width * 0.92, label=name, color=_tab10(j), yerr=err, capsize=2,
                error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
-        for xi, vi in zip(xs, v):
-            ax.text(xi, min(vi, ylim[1] - 6), f"{vi:.0f}", ha="center", va="bottom", fontsize=6)
-    ax.set_xticks(x, groups, fontsize=8)
+        for xi, vi, hi in zip(xs, v, highs[ok, j]):  # the value above its whisker
+            ax.text(xi, hi + 0.01 * (ylim[1] - ylim[0]), f"{vi:.0f}", ha="center", va="bottom", fontsize=5.5)
+    ax.set_xticks(x, [textwrap.fill(g, 18) for g in groups], fontsize=8)
     ax.set_ylabel(ylabel)
     ax.set_ylim(*ylim)
     ax.set_title(title, fontsize=10)
