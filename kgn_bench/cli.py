@@ -387,6 +387,12 @@ def _weights(p):
                                      "variant the weights were trained as)")
 
 
+def _split(p):
+    p.add_argument("--data", type=Path, required=True, help="dataset folder")
+    p.add_argument("--split", default="test", choices=("train", "test"))
+    p.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
+
+
 def _add_data(sub) -> None:
     data = sub.add_parser("data", help="the Primitive Shape dataset")
     dsub = data.add_subparsers(dest="data_command", required=True, parser_class=_Parser)
@@ -490,17 +496,12 @@ def _add_learning(sub) -> None:
     ex.set_defaults(func=_cmd_export)
     ev = sub.add_parser("eval", help="evaluate detectors")
     esub = ev.add_subparsers(dest="eval_command", required=True, parser_class=_Parser)
-    vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split", parents=[_parent(_weights, _quiet)])
-    vis.add_argument("--data", type=Path, required=True, help="dataset folder")
-    vis.add_argument("--split", default="test", choices=("train", "test"))
-    vis.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
+    vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split",
+                          parents=[_parent(_weights, _split, _quiet)])
     vis.add_argument("--out", type=Path, help="folder for vision.json and vision.md")
     vis.set_defaults(func=_cmd_eval_vision)
     err = esub.add_parser("errors", help="split each prediction's error into centre, ray distance, rotation, width",
-                          parents=[_parent(_weights, _quiet)])
-    err.add_argument("--data", type=Path, required=True, help="dataset folder")
-    err.add_argument("--split", default="test", choices=("train", "test"))
-    err.add_argument("--views", type=_int_at_least(1), help="evaluate only the first N views")
+                          parents=[_parent(_weights, _split, _quiet)])
     err.add_argument("--out", type=Path, help="folder for errors.json, errors.md and errors.png (CDF plots)")
     err.set_defaults(func=_cmd_eval_errors)
     shw = esub.add_parser("show", help="draw a detector's keypoint boxes beside the ground truth of one view",

@@ -62,17 +62,16 @@ def _git_commit() -> str:
 
 
 def _weights_identity(detector: str) -> str | None:
-    """SHA-256 of a learned detector's weights file (checked to load first), None for other detectors."""
+    """SHA-256 of a learned detector's weights file, None for other detectors (``run_benchmark`` has built the
+    detector, and so loaded and verified the file, before it asks)."""
     from kgn_bench.detectors import LEARNED
 
     if detector not in LEARNED:
         return None
     from kgn_bench.detectors.kgn import weights_path
-    from kgn_bench.model.checkpoint import file_sha256, load_checkpoint
+    from kgn_bench.model.checkpoint import file_sha256
 
-    path = weights_path(detector)
-    load_checkpoint(path)  # a missing or corrupt file fails here, in one line, before any trial
-    return file_sha256(path)
+    return file_sha256(weights_path(detector))
 
 
 def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
