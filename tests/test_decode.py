@@ -1,3 +1,4 @@
+import dataclasses
 import time
 
 import cv2
@@ -60,7 +61,7 @@ def depth_for(poses):
 def round_trip(poses, widths, M, out_shape, variant, depth=None):
     """Encode ground truth, decode the target maps; assert every kept grasp comes back (canonical pose)."""
     kept = assign_grasps(poses, widths, K, M, out_shape, variant)
-    targets = encode_targets(poses, widths, K, M, out_shape, variant)
+    targets = encode_targets(poses, widths, K, M, out_shape, variant, depth)
     cands = decode(targets_to_maps(targets, variant), K, M, variant, ALL, depth=depth)
     assert len(kept) > 0 and len(cands) == len(kept)
     kp_img = apply_affine(np.linalg.inv(np.vstack([M, [0, 0, 1]]))[:2], kept.keypoints)
@@ -96,6 +97,60 @@ def test_round_trip_depth_variant():
     widths = rng.uniform(0.01, 0.08, len(poses))
     assert round_trip(poses, widths, M_HALF, OUT_HALF, variant, depth) > 10
     assert round_trip(poses, widths, M_FLIP, OUT_CROP, variant, depth) > 10
+
+
+def tilted_plane(z0=0.7, slope=0.0001):
+    """A depth image of a plane tilted along v: z = z0 + slope · (v − 240) metres, holes at every 7th column."""
+    v = np.arange(REALSENSE.height, dtype=np.float32)[:, None]
+    depth = np.repeat(z0 + slope * (v - 240.0), REALSENSE.width, axis=1).astype(np.float32)
+    depth[:, ::7] = 0.0
+    return depth
+
+
+@pytest.mark.parametrize("name", ["kgnv2", "kgnv2_sbranch"])
+def test_round_trip_depth_anchored_scale(name):
+    """A perfect residual map plus the observed distance at the decoded centre gives back ‖t‖ exactly,
+    whatever the scene's depth: the anchor is read at the same pixel in encoding and decoding."""
+    variant = get_variant(name).with_scale_anchor("depth")
+    assert variant.needs_depth and not get_variant(name).needs_depth
+    rng = np.random.default_rng(14)
+    poses = random_poses(rng, 150)
+    widths = rng.uniform(0.01, 0.08, 150)
+    depth = tilted_plane()
+    assert round_trip(poses, widths, M_HALF, OUT_HALF, variant, depth) > 60
+    assert round_trip(poses, widths, M_FLIP, OUT_CROP, variant, depth) > 60
+    with pytest.raises(ValueError, match="needs the depth"):
+        encode_targets(poses, widths, K, M_HALF, OUT_HALF, variant)
+    with pytest.raises(ValueError, match="needs the depth"):
+        decode(targets_to_maps(encode_targets(poses, widths, K, M_HALF, OUT_HALF, variant, depth), variant),
+               K, M_HALF, variant)
+
+
+def test_depth_anchored_scale_residual_and_holes():
+    """The scale target is ‖t‖ − z̃·‖K⁻¹[u, v, 1]‖ at the grasp centre; without valid depth near the centre
+    the target is 0 and the decoder drops the detection."""
+    variant = get_variant("kgnv2").with_scale_anchor("depth")
+    T = make_pose(rot_x(-0.8) @ rot_y(-np.pi / 2), [0.02, 0.01, 0.8])
+    _, ct = project_keypoints(T[None], K, np.full(1, BOX_SIDE))
+    depth = np.full((REALSENSE.height, REALSENSE.width), 0.77, dtype=np.float32)
+    t = encode_targets(T[None], np.array([0.04]), K, M_HALF, OUT_HALF, variant, depth)
+    ray = np.linalg.inv(K) @ np.array([*np.rint(ct[0]), 1.0])
+    expected = np.linalg.norm(T[:3, 3]) - 0.77 * np.linalg.norm(ray)
+    assert t["mask"][0] == 1.0 and t["scale"][0] == pytest.approx(expected, abs=2e-5)
+    assert 0.02 < expected < 0.04  # the origin lies a few cm behind the surface along the ray
+    holes = np.zeros_like(depth)
+    t0 = encode_targets(T[None], np.array([0.04]), K, M_HALF, OUT_HALF, variant, holes)
+    assert t0["mask"][0] == 1.0 and t0["scale"][0] == 0.0
+    assert len(decode(targets_to_maps(t, variant), K, M_HALF, variant, depth=depth)) == 1
+    assert len(decode(targets_to_maps(t, variant), K, M_HALF, variant, depth=holes)) == 0
+
+
+def test_scale_anchor_needs_a_scale_branch():
+    with pytest.raises(ValueError, match="needs the scale branch"):
+        dataclasses.replace(get_variant("kgn"), scale_anchor="depth")
+    with pytest.raises(ValueError, match="unknown scale_anchor"):
+        dataclasses.replace(get_variant("kgnv2"), scale_anchor="sonar")
+    assert get_variant("kgn").with_scale_anchor("depth") == get_variant("kgn")
 
 
 @pytest.mark.parametrize("shape", [Cuboid((0.06, 0.09, 0.05)), Cylinder(0.04, 0.08)])

@@ -33,7 +33,7 @@ from torch.utils.data import Dataset
 from kgn_bench.data.format import DatasetError, SceneAnnotation, read_split, read_view, scene_dir
 from kgn_bench.grasp import GraspSet
 from kgn_bench.model.preprocess import InputConfig, affine_for_crop, output_affine, prepare, standardize, warp_images
-from kgn_bench.model.targets import OUTPUT_STRIDE, encode_targets
+from kgn_bench.model.targets import ASSIGNMENTS, OUTPUT_STRIDE, encode_targets
 from kgn_bench.model.variants import Variant
 
 __all__ = ["AugmentConfig", "GraspViewDataset", "camera_frame_grasps"]
@@ -87,12 +87,16 @@ class GraspViewDataset(Dataset):
     """Views of the scenes of ``split`` of the dataset at ``root`` as (input, targets) pairs.
 
     ``__getitem__`` returns ``(x (4, H_in, W_in) float32 tensor, targets dict of tensors)`` in the format
-    of ``model.targets.encode_targets``. ``set_epoch`` changes the augmentation draws.
+    of ``model.targets.encode_targets`` (with the view's stored depth as the scale anchor's depth and the
+    ``assignment`` rule of ``model.targets``). ``set_epoch`` changes the augmentation draws.
     """
 
     def __init__(self, root: Path, split: str, variant: Variant, input_config: InputConfig | None = None,
                  augment: AugmentConfig | None = None, seed: int = 0, limit: int | None = None,
-                 cache_scenes: int = 64) -> None:
+                 cache_scenes: int = 64, assignment: str = "first") -> None:
+        if assignment not in ASSIGNMENTS:
+            raise ValueError(f"unknown assignment {assignment!r} (known: {', '.join(ASSIGNMENTS)})")
+        self.assignment = assignment
         self.root = Path(root)
         self.variant, self.augment, self.seed = variant, augment, seed
         self.input_config = input_config or InputConfig()
@@ -124,13 +128,17 @@ class GraspViewDataset(Dataset):
 
     def sample(self, index: int) -> tuple[np.ndarray, np.ndarray, tuple[int, int], SceneAnnotation, int]:
         """``(x (4, H, W) float32, M image → output, out_shape, annotation, view)`` of item ``index``."""
+        return self._sample(index)[:5]
+
+    def _sample(self, index: int) -> tuple[np.ndarray, np.ndarray, tuple[int, int], SceneAnnotation, int, np.ndarray]:
+        """``sample`` and the view's stored depth image (H, W) metres, before any augmentation."""
         scene, view = self.items[index]
         ann = self.annotation(scene)
         rgbd = read_view(scene_dir(self.root, scene), view)
         if self.augment is None:
             x, M, _ = prepare(rgbd.rgb, rgbd.depth, self.input_config)
             # targets cover the padded maps, the same shape as the network's output
-            return x.numpy(), M, (x.shape[1] // OUTPUT_STRIDE, x.shape[2] // OUTPUT_STRIDE), ann, view
+            return x.numpy(), M, (x.shape[1] // OUTPUT_STRIDE, x.shape[2] // OUTPUT_STRIDE), ann, view, rgbd.depth
         aug = self.augment
         rng = np.random.default_rng([self.seed, self.epoch, index])
         h, w = rgbd.depth.shape
@@ -147,11 +155,12 @@ class GraspViewDataset(Dataset):
             noise = np.clip(rng.normal(0.0, aug.depth_noise, depth.shape), -aug.depth_clip, aug.depth_clip)
             depth = np.where(depth > 0, depth + noise.astype(np.float32), 0.0).astype(np.float32)
         x = standardize(rgb, depth, self.input_config)
-        return x, output_affine(A), (h_in // OUTPUT_STRIDE, w_in // OUTPUT_STRIDE), ann, view
+        return x, output_affine(A), (h_in // OUTPUT_STRIDE, w_in // OUTPUT_STRIDE), ann, view, rgbd.depth
 
     def __getitem__(self, index: int) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-        x, M, out_shape, ann, view = self.sample(index)
+        x, M, out_shape, ann, view, depth = self._sample(index)
         grasps = camera_frame_grasps(ann, view)
-        targets = encode_targets(grasps.poses, grasps.widths, ann.intrinsics.K, M, out_shape, self.variant)
+        targets = encode_targets(grasps.poses, grasps.widths, ann.intrinsics.K, M, out_shape, self.variant, depth,
+                                 self.assignment)
         return torch.from_numpy(np.ascontiguousarray(x)), {k: torch.from_numpy(v) for k, v in targets.items()}
 

@@ -3,7 +3,7 @@
 ``detect``: validate the observation, ``model.preprocess.prepare`` (full frame resized by the model's
 ``input_scale``, standardised, padded), one forward pass, sigmoid on the heatmap logits, then
 ``model.decode.decode`` (top-k peaks, orientation filter, IPPE PnP, translation per variant) with the
-observed depth for ``kgn_depth``. Candidates are in the camera frame.
+observed depth for ``kgn_depth`` and for depth-anchored scale heads. Candidates are in the camera frame.
 
 Weights: a name looks up ``assets/weights/<name>.pt`` (``kgn_depth`` uses ``kgn``'s); a path loads that file.
 """
@@ -55,7 +55,7 @@ class KGNDetector:
         if model is None:
             model = load_model(weights_path(variant, weights), wanted)
         self.model = model
-        self.variant = wanted or model.variant
+        self.variant = wanted.with_scale_anchor(model.variant.scale_anchor) if wanted else model.variant
         self.name = self.variant.name
         if self.model.variant.weights_variant != self.variant.weights_variant:
             raise DetectorError(f"model of variant {self.model.variant.name!r} cannot decode as {self.name!r}")
@@ -91,6 +91,6 @@ class KGNDetector:
         maps, M = self.maps(observation)
         t = time.perf_counter()
         cands = decode(maps, observation.intrinsics.K, M, self.variant, self.decode_config,
-                       depth=observation.depth if self.variant.translation == "depth" else None, timing=self.timing)
+                       depth=observation.depth if self.variant.needs_depth else None, timing=self.timing)
         self.timing["decode"] = time.perf_counter() - t - self.timing.get("pnp", 0.0)
         return cands

@@ -29,7 +29,7 @@ from kgn_bench.errors import KGNBenchError
 from kgn_bench.io import atomic_write, atomic_write_text
 from kgn_bench.model.network import KGNNet, NetworkConfig, build_network
 from kgn_bench.model.preprocess import InputConfig
-from kgn_bench.model.variants import Variant, get_variant
+from kgn_bench.model.variants import VARIANTS, Variant, get_variant
 
 __all__ = [
     "FORMAT",
@@ -162,12 +162,15 @@ def load_model(path: Path, variant: Variant | None = None) -> LoadedModel:
     """Build the network a checkpoint describes and load its weights.
 
     ``variant``: the decoding variant the caller wants; its ``weights_variant`` must equal the
-    checkpoint's training variant (``kgn_depth`` loads ``kgn`` weights), else ``CheckpointError``.
+    checkpoint's training variant (``kgn_depth`` loads ``kgn`` weights), else ``CheckpointError``. The
+    returned model's variant carries the checkpoint's ``scale_anchor`` (``"none"`` for checkpoints that
+    predate it).
     """
     data = load_checkpoint(path)
     trained = data["variant"]
+    anchor = data.get("scale_anchor", "none")
     try:
-        trained_variant = get_variant(trained)
+        trained_variant = get_variant(trained).with_scale_anchor(anchor)
     except ValueError as e:
         raise CheckpointError(f"{path}: {e}") from None
     if variant is not None and variant.weights_variant != trained:
@@ -184,7 +187,8 @@ def load_model(path: Path, variant: Variant | None = None) -> LoadedModel:
         raise CheckpointError(f"{path}: weights do not fit the network ({first})") from None
     net.eval()
     meta = {k: v for k, v in data.items() if k not in ("model", "optimizer", "scheduler")}
-    return LoadedModel(net, variant or trained_variant, network, input_config, meta)
+    chosen = variant.with_scale_anchor(anchor) if variant is not None else trained_variant
+    return LoadedModel(net, chosen, network, input_config, meta)
 
 
 def config_dict(config) -> dict[str, Any]:
@@ -192,12 +196,13 @@ def config_dict(config) -> dict[str, Any]:
     return json.loads(json.dumps(asdict(config)))
 
 
-def model_payload(net: torch.nn.Module, variant: str, network: NetworkConfig, input_config: InputConfig
-                  ) -> dict[str, Any]:
-    """The checkpoint entries that rebuild a network: ``variant``, ``network``, ``input`` and ``model``
-    (the state dict on the CPU); ``load_model`` reads exactly these."""
-    return {"variant": variant, "network": config_dict(network), "input": config_dict(input_config),
-            "model": {k: v.detach().cpu() for k, v in net.state_dict().items()}}
+def model_payload(net: torch.nn.Module, variant: str, network: NetworkConfig, input_config: InputConfig,
+                  scale_anchor: str = "none") -> dict[str, Any]:
+    """The checkpoint entries that rebuild a network: ``variant`` (the training variant's name),
+    ``scale_anchor``, ``network``, ``input`` and ``model`` (the state dict on the CPU); ``load_model`` reads
+    exactly these."""
+    return {"variant": variant, "scale_anchor": scale_anchor, "network": config_dict(network),
+            "input": config_dict(input_config), "model": {k: v.detach().cpu() for k, v in net.state_dict().items()}}
 
 
 def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | None = None) -> str:
@@ -215,7 +220,7 @@ def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | N
         "",
         "| field | value |",
         "| --- | --- |",
-        f"| variant | `{data['variant']}` |",
+        f"| variant | `{data['variant']}`{_anchor_text(data)} |",
         *([f"| sha256 | `{sha256}` |"] if sha256 else []),
         f"| parameters | {data.get('parameters', 'n/a')} |",
         f"| file size | {size_bytes / 1e6:.1f} MB |",
@@ -244,6 +249,15 @@ def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | N
     lines += ["", "Training curve (per epoch): " + ", ".join(f"{h['epoch']}: {h.get('total', float('nan')):.3f}"
                                                          for h in history)]
     return "\n".join(lines) + "\n"
+
+
+def _anchor_text(data: dict[str, Any]) -> str:
+    """How the card names the scale head's parameterisation ("" for a variant without one)."""
+    if data.get("variant") not in VARIANTS or not VARIANTS[data["variant"]].scale_branch:
+        return ""
+    if data.get("scale_anchor", "none") == "depth":
+        return ", scale head: residual to the observed depth along the ray"
+    return ", scale head: absolute distance"
 
 
 def _pct(x: float | None) -> str:

@@ -19,10 +19,11 @@ Steps:
    t_z ≤ 0 or non-finite values are dropped. The reprojection error is the RMS Euclidean pixel distance
    ``sqrt(mean_j ‖π(T·P_j) − p_j‖²)`` of that solution over the 4 keypoints;
 6. translation by ``variant.translation``: ``pnp`` keeps the metric t (fixed 0.1 m box); ``scale`` sets
-   ``t ← ŝ · t/‖t‖`` with ŝ = ``scale[bin, y, x]`` (dropped if ŝ ≤ 0); ``depth`` sets
-   ``‖t‖ = z · ‖K⁻¹ [u_c, v_c, 1]ᵀ‖`` — the Euclidean distance of the point of planar depth z on the ray
-   through the predicted centre (u_c, v_c) — with z the median of the valid (> 0, finite) depths in the 5×5
-   window around rint(u_c, v_c), the window clamped inside the image (dropped if none is valid).
+   ``t ← ŝ · t/‖t‖`` with ŝ = ``scale[bin, y, x]``, or, with ``variant.scale_anchor == "depth"``,
+   ŝ = d_obs(u_c, v_c) + ``scale[bin, y, x]`` (dropped if ŝ ≤ 0 or d_obs is undefined); ``depth`` sets
+   ``‖t‖ = d_obs(u_c, v_c)``. d_obs is ``depth_anchor.observed_distance``: the Euclidean distance of the point
+   of planar depth z on the ray through the predicted centre (u_c, v_c), with z the median of the valid
+   (> 0, finite) depths in the 5×5 window around rint(u_c, v_c), the window clamped inside the image.
 
 Widths are ``width[bin, y, x]`` clipped at 0; confidences are the heatmap scores.
 """
@@ -36,14 +37,12 @@ import cv2
 import numpy as np
 
 from kgn_bench.grasp import keypoint_box
+from kgn_bench.model.depth_anchor import DEPTH_WINDOW, depth_at, observed_distance
 from kgn_bench.model.targets import NUM_BINS, apply_affine, invert_affine, orientation_bins
 from kgn_bench.model.variants import BOX_SIDE, Variant
 from kgn_bench.types import Candidates
 
 __all__ = ["DEPTH_WINDOW", "DecodeConfig", "decode", "depth_at", "solve_box_pnp", "solve_box_pnp_batch"]
-
-DEPTH_WINDOW = 5
-"""Side (px) of the window around the predicted centre whose median valid depth sets ‖t‖ (depth variant)."""
 
 _BOX = keypoint_box(BOX_SIDE)
 
@@ -136,24 +135,6 @@ def solve_box_pnp(image_points: np.ndarray, K: np.ndarray, side: float = BOX_SID
     return (poses[0], float(errors[0])) if ok[0] else None
 
 
-def depth_at(depth: np.ndarray, uv: np.ndarray, window: int = DEPTH_WINDOW) -> np.ndarray:
-    """Median valid (> 0, finite) planar depth (m) in the ``window``×``window`` square around rint(uv) for
-    each image point uv (N, 2) px; the square is clamped inside the image; NaN where none is valid."""
-    h, w = depth.shape
-    half = window // 2
-    centre = np.rint(np.asarray(uv, dtype=float)).astype(np.int64).reshape(-1, 2)
-    du, dv = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1))
-    u = np.clip(centre[:, :1], 0, w - 1) + du.reshape(1, -1)
-    v = np.clip(centre[:, 1:], 0, h - 1) + dv.reshape(1, -1)
-    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
-    values = np.where(inside, depth[np.clip(v, 0, h - 1), np.clip(u, 0, w - 1)], np.nan).astype(float)
-    values[~(values > 0.0) | ~np.isfinite(values)] = np.nan
-    out = np.full(len(centre), np.nan)
-    some = ~np.all(np.isnan(values), axis=1)
-    out[some] = np.nanmedian(values[some], axis=1)
-    return out
-
-
 def _top_k(hm: np.ndarray, k: int, threshold: float) -> tuple[np.ndarray, np.ndarray]:
     """Flat indices and scores of the ``k`` highest entries ≥ ``threshold``, by descending score (ties by
     ascending index)."""
@@ -181,7 +162,7 @@ def decode(
     """Grasp candidates (camera frame, ``T_cam_grasp``) of one image from its prediction maps.
 
     ``maps`` as in the module docstring, ``K`` 3×3 intrinsics, ``M`` 2×3 image → output affine, ``depth``
-    (H, W) planar metres of the original image (needed by ``translation == "depth"``, ignored otherwise).
+    (H, W) planar metres of the original image (needed when ``variant.needs_depth``, ignored otherwise).
     Candidate keypoints are the predicted image pixels in canonical order (L, R, TL, TR). ``timing``, if
     given, receives the seconds spent in PnP under ``"pnp"``.
     """
@@ -191,7 +172,7 @@ def decode(
     if K.shape != (3, 3) or not np.all(np.isfinite(K)):
         raise ValueError(f"K must be a finite 3×3 matrix, got shape {K.shape}")
     M_inv = invert_affine(M)
-    if variant.translation == "depth":
+    if variant.needs_depth:
         if depth is None:
             raise ValueError(f"variant {variant.name} needs the depth image")
         depth = np.asarray(depth)
@@ -214,8 +195,6 @@ def decode(
     keep = np.ones(len(c), dtype=bool)
     if config.orientation_filter:
         keep &= orientation_bins(kp_out[:, 0], kp_out[:, 1]) == c
-    if scale is not None:
-        keep &= scale > 0.0
     kp_img = apply_affine(M_inv, kp_out)
     centre_img = apply_affine(M_inv, centre_out)
 
@@ -228,14 +207,15 @@ def decode(
     keep[keep] = solved
 
     if variant.translation != "pnp":
-        if variant.translation == "scale":
-            norm = scale
+        observed = np.full(len(c), np.nan)
+        if variant.needs_depth:
+            observed[keep] = observed_distance(depth, centre_img[keep], K)
+            keep &= np.isfinite(observed)
+        if variant.translation == "depth":
+            norm = observed
         else:
-            ray = np.concatenate([centre_img, np.ones((len(c), 1))], axis=1) @ np.linalg.inv(K).T
-            z = np.full(len(c), np.nan)
-            z[keep] = depth_at(depth, centre_img[keep])
-            keep &= np.isfinite(z)
-            norm = z * np.linalg.norm(ray, axis=1)
+            norm = scale + observed if variant.scale_anchor == "depth" else scale
+            keep &= norm > 0.0
         t = poses[:, :3, 3]
         t_len = np.linalg.norm(t, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):

@@ -15,15 +15,24 @@ Per grasp, in order:
    projection of the turned pose;
 3. orientation bin ``c = ⌊(θ + π/2)/(π/9)⌋`` clamped to [0, 8], ``θ = atan2(y_R − y_L, x_R − x_L)``;
 4. the grasp is dropped if any of the 5 points is behind the camera (z ≤ 0) or outside
-   ``[0, Wo) × [0, Ho)``; then at most one grasp per (cell, bin), the first one wins; then the first
-   ``MAX_GRASPS`` remaining grasps take the slots (grasps without a slot draw nothing);
+   ``[0, Wo) × [0, Ho)``; then at most one grasp per (cell, bin) and the first ``MAX_GRASPS`` remaining
+   grasps take the slots (grasps without a slot draw nothing), both in the order of the ``assignment``
+   rule: ``"first"`` (the reference) keeps the input order, so the first grasp of a (cell, bin) wins;
+   ``"frontal"`` orders the grasps by descending ``cos ∠(x̂_grasp, t̂)``, the alignment of the approach axis
+   with the viewing ray of the grasp origin, so the grasp approached most nearly from the camera wins. Where
+   several grasps share a (cell, bin) the network can only regress one of them; "frontal" makes the
+   choice a function of what the image shows, where "first" depends on the order in which a shape lists
+   its grasp family, which the image does not show (a cylinder's family starts at an invisible angle);
 5. heatmap: a 3×3 Gaussian (σ = 0.5: 1 at the integer cell, e^−2 at edges, e^−4 at corners, clipped at
    the map border) in channel ``c``, combined by element-wise maximum.
 
 Target dict (the input of ``kgn_bench.model.losses``), ``S = MAX_GRASPS`` slots: ``hm`` (9, Ho, Wo)
 float32; ``ind`` (S,) int64 ``= y_int·Wo + x_int``; ``mask`` (S,) float32; ``bin`` (S,) int64; ``reg``
 (S, 2) float32 ``= centre − cell``; ``kpts`` (S, 8) float32 keypoint offsets from the cell (L, R, TL, TR;
-x, y interleaved, output px); ``width`` (S,) float32 metres; ``scale`` (S,) float32 ``= ‖t_cam‖`` metres.
+x, y interleaved, output px); ``width`` (S,) float32 metres; ``scale`` (S,) float32 ``= ‖t_cam‖`` metres, or,
+for a depth-anchored scale head (``variant.scale_anchor == "depth"``), the residual ``‖t_cam‖ − d_obs`` to
+the observed distance along the ray of the grasp's image centre (``kgn_bench.model.depth_anchor``; residual
+0 where the depth image has no valid value near that centre).
 """
 
 from __future__ import annotations
@@ -33,9 +42,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from kgn_bench.grasp import FLIP_X180, keypoints_in_frame
+from kgn_bench.model.depth_anchor import observed_distance
 from kgn_bench.model.variants import Variant
 
 __all__ = [
+    "ASSIGNMENTS",
     "MAX_GRASPS",
     "NUM_BINS",
     "OUTPUT_STRIDE",
@@ -56,6 +67,9 @@ OUTPUT_STRIDE = 4
 """Output maps have 1/4 of the network input resolution."""
 MAX_GRASPS = 300
 """Target slots per image."""
+
+ASSIGNMENTS = ("first", "frontal")
+"""Rules for which grasp takes a (cell, bin) and the slots (module docstring, step 4)."""
 
 _SWAP = np.array([1, 0, 3, 2])
 """Keypoint re-ordering of the 180°-turned grasp: (L, R, TL, TR) → (R, L, TR, TL)."""
@@ -143,12 +157,15 @@ def assign_grasps(
     M: np.ndarray,
     out_shape: tuple[int, int],
     variant: Variant,
+    assignment: str = "first",
 ) -> AssignedGrasps:
     """Steps 1–4 of the module docstring: which grasps become targets, canonicalised, with their geometry.
 
     ``poses_cam`` (N, 4, 4) ``T_cam_grasp``, ``widths`` (N,) m, ``K`` 3×3 intrinsics of the image, ``M`` 2×3
-    image → output affine, ``out_shape`` (Ho, Wo).
+    image → output affine, ``out_shape`` (Ho, Wo), ``assignment`` one of ``ASSIGNMENTS``.
     """
+    if assignment not in ASSIGNMENTS:
+        raise ValueError(f"unknown assignment {assignment!r} (known: {', '.join(ASSIGNMENTS)})")
     poses_cam = np.asarray(poses_cam, dtype=float)
     widths = np.asarray(widths, dtype=float)
     K = np.asarray(K, dtype=float)
@@ -188,6 +205,10 @@ def assign_grasps(
     bins[inside] = orientation_bins(kp_q[inside, 0], kp_q[inside, 1])
 
     candidates = np.flatnonzero(inside)
+    if assignment == "frontal" and len(candidates):
+        t = poses_cam[candidates, :3, 3]
+        alignment = np.einsum("ni,ni->n", poses_cam[candidates, :3, 0], t) / np.linalg.norm(t, axis=1)
+        candidates = candidates[np.argsort(-alignment, kind="stable")]
     key = (bins[candidates] * ho + cells[candidates, 1]) * wo + cells[candidates, 0]
     _, first = np.unique(key, return_index=True)
     keep = candidates[np.sort(first)][:MAX_GRASPS]
@@ -228,13 +249,23 @@ def encode_targets(
     M: np.ndarray,
     out_shape: tuple[int, int],
     variant: Variant,
+    depth: np.ndarray | None = None,
+    assignment: str = "first",
 ) -> dict[str, np.ndarray]:
     """Training targets of one image (format in the module docstring) from its ground-truth grasps.
 
-    Arguments as in ``assign_grasps``; use ``assign_grasps`` to learn which grasps were kept.
+    Arguments as in ``assign_grasps``, and ``depth`` (H, W) planar metres of the image (needed, and only
+    read, when ``variant.scale_anchor == "depth"``); use ``assign_grasps`` to learn which grasps were kept.
     """
     ho, wo = _check_out_shape(out_shape)
-    a = assign_grasps(poses_cam, widths, K, M, out_shape, variant)
+    a = assign_grasps(poses_cam, widths, K, M, out_shape, variant, assignment)
+    scales = a.scales
+    if variant.scale_anchor == "depth":
+        if depth is None:
+            raise ValueError(f"a depth-anchored scale ({variant.name}) needs the depth image")
+        _, centres_img = project_keypoints(a.poses, np.asarray(K, dtype=float), a.sides)
+        residual = a.scales - observed_distance(np.asarray(depth), centres_img, np.asarray(K, dtype=float))
+        scales = np.where(np.isfinite(residual), residual, 0.0)
     k = len(a)
     targets = {
         "hm": render_heatmap(a.cells, a.bins, (ho, wo)),
@@ -252,7 +283,7 @@ def encode_targets(
     targets["reg"][:k] = a.centres - a.cells
     targets["kpts"][:k] = (a.keypoints - a.cells[:, None, :]).reshape(k, 8)
     targets["width"][:k] = a.widths
-    targets["scale"][:k] = a.scales
+    targets["scale"][:k] = scales
     return targets
 
 

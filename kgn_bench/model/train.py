@@ -5,7 +5,10 @@ A training config (``tasks/train_<variant>_<data>.toml``) has the sections
 * ``[train]``: ``variant``, ``data`` (dataset folder), ``out`` (run folder), ``epochs``, ``batch_size``,
   ``lr``, ``lr_steps`` (epochs after which the rate is multiplied by ``lr_gamma``), ``seed``, ``workers``
   (data-loading processes), ``limit`` (use only the first N training views; 0 = all), ``eval_every``
-  (epochs between held-out evaluations; 0 = only at the end), ``eval_views`` (test views evaluated);
+  (epochs between held-out evaluations; 0 = only at the end), ``eval_views`` (test views evaluated),
+  ``scale_anchor`` (``none`` or ``depth``: how the scale head is parameterised, ``model.depth_anchor``) and
+  ``assignment`` (``first`` or ``frontal``: which grasp a shared (cell, bin) target takes,
+  ``model.targets``);
 * ``[network]`` (``NetworkConfig``), ``[input]`` (``InputConfig``), ``[augment]`` (``AugmentConfig``),
   ``[loss]`` (``LossWeights``); omitted keys take the defaults.
 
@@ -45,6 +48,7 @@ from kgn_bench.model.checkpoint import (
 from kgn_bench.model.losses import LossWeights, kgn_loss
 from kgn_bench.model.network import NetworkConfig, build_network, count_parameters
 from kgn_bench.model.preprocess import InputConfig
+from kgn_bench.model.targets import ASSIGNMENTS
 from kgn_bench.model.variants import get_variant
 from kgn_bench.progress import Progress
 from kgn_bench.threads import available_cores
@@ -71,6 +75,11 @@ class TrainSettings:
     limit: int = 0
     eval_every: int = 5
     eval_views: int = 100
+    scale_anchor: str = "none"
+    """``none``: the scale head regresses ‖t_cam‖ (the paper); ``depth``: its residual to the observed depth
+    along the grasp centre's ray (``kgn_bench.model.depth_anchor``)."""
+    assignment: str = "first"
+    """Which grasp a (cell, bin) target takes: ``first`` (the reference) or ``frontal`` (``model.targets``)."""
 
 
 @dataclass(frozen=True)
@@ -101,9 +110,13 @@ def load_train_config(path: Path) -> TrainConfig:
     cfg = TrainConfig(name=path.stem, **parts)
     t = cfg.train
     try:
-        get_variant(t.variant)
+        get_variant(t.variant).with_scale_anchor(t.scale_anchor)
     except ValueError as e:
         raise TrainConfigError(f"{path}: {e}") from None
+    if t.assignment not in ASSIGNMENTS:
+        raise TrainConfigError(f"{path}: unknown [train] assignment {t.assignment!r} (known: {', '.join(ASSIGNMENTS)})")
+    if t.scale_anchor != "none" and not get_variant(t.variant).scale_branch:
+        raise TrainConfigError(f"{path}: variant {t.variant!r} has no scale head to anchor (scale_anchor)")
     if get_variant(t.variant).weights_variant != t.variant:
         source = get_variant(t.variant).weights_variant
         raise TrainConfigError(f"{path}: variant {t.variant!r} is decoded from {source!r} weights; train that one")
@@ -127,7 +140,7 @@ def _evaluate(net, cfg: TrainConfig, data: Path, views: int) -> dict[str, Any]:
     from kgn_bench.eval.vision import evaluate_dataset
 
     net.eval()
-    variant = get_variant(cfg.train.variant)
+    variant = get_variant(cfg.train.variant).with_scale_anchor(cfg.train.scale_anchor)
     model = LoadedModel(net, variant, cfg.network, cfg.input, {})
     detector = KGNDetector(variant.name, model=model)
     metrics = evaluate_dataset(detector, data, split="test", views=views, progress=False)
@@ -147,7 +160,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, th
     out = Path(t_cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     data = Path(t_cfg.data)
-    variant = get_variant(t_cfg.variant)
+    variant = get_variant(t_cfg.variant).with_scale_anchor(t_cfg.scale_anchor)
     dev = torch.device(device or ("cuda" if torch.cuda.is_available() else "cpu"))
     if threads:
         torch.set_num_threads(threads)
@@ -156,7 +169,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, th
     torch.manual_seed(t_cfg.seed)
 
     dataset = GraspViewDataset(data, "train", variant, cfg.input, cfg.augment, seed=t_cfg.seed,
-                               limit=t_cfg.limit or None)
+                               limit=t_cfg.limit or None, assignment=t_cfg.assignment)
     if len(dataset) < t_cfg.batch_size:
         raise DatasetError(f"{data}: {len(dataset)} training views, fewer than one batch of {t_cfg.batch_size}")
     identity = dataset_identity(data)
@@ -180,7 +193,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, th
 
     def payload(epoch: int, with_optimizer: bool) -> dict[str, Any]:
         p = {
-            **model_payload(net, variant.name, cfg.network, cfg.input),
+            **model_payload(net, variant.name, cfg.network, cfg.input, variant.scale_anchor),
             "train": cfg.to_dict(),
             "dataset": identity,
             "git_commit": commit,

@@ -19,11 +19,17 @@ A variant fixes three choices:
 | kgnv2           | yes        | scale_normalized | scale       |
 
 ``kgn_depth`` uses the weights of ``kgn`` (it differs only at decoding): ``training_variant`` names it.
+
+A fourth choice belongs to a trained model, not to the variant's name: ``scale_anchor``, how the scale head
+is parameterised (``kgn_bench.model.depth_anchor``). ``none`` (the paper) regresses ŝ = ‖t_cam‖ directly;
+``depth`` regresses the residual r = ‖t_cam‖ − d_obs to the distance the depth image observes along the ray
+of the grasp centre, and decodes ŝ = d_obs + r̂. A checkpoint records it (``model.checkpoint``), and
+``with_scale_anchor`` gives the variant a checkpoint decodes as.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -46,6 +52,8 @@ class Variant:
     """k of the scale-normalised box a = k · s · BOX_SIDE (unused for ``fixed``)."""
     training_variant: str | None = None
     """The variant whose weights this one loads (None: its own)."""
+    scale_anchor: Literal["none", "depth"] = "none"
+    """Parameterisation of the scale head: ŝ itself (``none``) or its residual to the observed depth (``depth``)."""
 
     def __post_init__(self) -> None:
         if self.box not in ("fixed", "scale_normalized"):
@@ -58,10 +66,24 @@ class Variant:
             raise ValueError(f"variant {self.name}: a scale-normalised box has no metric PnP translation")
         if not self.box_coeff > 0.0:
             raise ValueError(f"variant {self.name}: box_coeff must be positive")
+        if self.scale_anchor not in ("none", "depth"):
+            raise ValueError(f"variant {self.name}: unknown scale_anchor {self.scale_anchor!r} (none or depth)")
+        if self.scale_anchor != "none" and not self.scale_branch:
+            raise ValueError(f"variant {self.name}: scale_anchor {self.scale_anchor!r} needs the scale branch")
 
     @property
     def weights_variant(self) -> str:
         return self.training_variant or self.name
+
+    @property
+    def needs_depth(self) -> bool:
+        """Whether decoding reads the observed depth image (depth translation or a depth-anchored scale)."""
+        return self.translation == "depth" or self.scale_anchor == "depth"
+
+    def with_scale_anchor(self, anchor: str) -> Variant:
+        """This variant with the scale head parameterised by ``anchor``; variants without the scale branch are
+        returned unchanged (they have no scale head to anchor)."""
+        return replace(self, scale_anchor=anchor) if self.scale_branch else self
 
     def box_sides(self, distances: np.ndarray) -> np.ndarray:
         """Keypoint-box side a (metres) for grasps at camera distances s = ‖t_cam‖ (metres), shape (N,)."""
