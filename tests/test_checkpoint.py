@@ -28,6 +28,23 @@ def test_kgn_depth_loads_kgn_weights_and_refuses_others(tmp_path, small_model):
         load_model(tmp_path / "kgn.pt", get_variant("kgnv2"))
 
 
+def test_scale_anchor_travels_with_the_checkpoint(tmp_path, small_model):
+    """The anchor is a property of the trained weights: the loaded variant carries it, whichever variant the
+    caller asks for, and checkpoints without the entry load as the paper's absolute scale."""
+    small_model(tmp_path / "anchored.pt", scale_anchor="depth")
+    small_model(tmp_path / "old.pt")
+    assert load_model(tmp_path / "anchored.pt").variant.scale_anchor == "depth"
+    assert load_model(tmp_path / "anchored.pt", get_variant("kgnv2")).variant.scale_anchor == "depth"
+    assert load_model(tmp_path / "old.pt").variant.scale_anchor == "none"
+    data = torch.load(tmp_path / "old.pt", weights_only=False)
+    del data["scale_anchor"]
+    torch.save(data, tmp_path / "older.pt")
+    assert load_model(tmp_path / "older.pt").variant == get_variant("kgnv2")
+    small_model(tmp_path / "bad.pt", scale_anchor="sonar")
+    with pytest.raises(CheckpointError, match="unknown scale_anchor 'sonar'"):
+        load_model(tmp_path / "bad.pt")
+
+
 @pytest.mark.parametrize("content, message", [
     (b"", "not a readable checkpoint"),
     (b"\x00garbage" * 10, "not a readable checkpoint"),

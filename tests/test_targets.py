@@ -194,3 +194,27 @@ def test_bad_inputs_raise_value_errors():
         encode_targets(T, np.ones(1), K, M_HALF[:, :2], OUT_HALF, FIXED)
     with pytest.raises(ValueError, match="hm"):
         targets_to_maps({"hm": np.zeros((3, 4, 4))}, FIXED)
+
+
+def test_frontal_assignment_keeps_the_grasp_approached_from_the_camera():
+    """Two grasps share a centre and an image orientation; "first" keeps the one listed first, "frontal"
+    the one whose approach axis is closer to the viewing ray, whatever the input order."""
+    t = np.array([0.05, 0.02, 0.8])
+    ray = t / np.linalg.norm(t)
+    z = np.cross(ray, [0.0, 1.0, 0.0])  # the closing axis of both, in the image plane
+    z /= np.linalg.norm(z)
+    def frame(x):  # right-handed (x, z × x, z)
+        return make_pose(np.stack([x, np.cross(z, x), z], axis=1), t)
+    front = frame(ray)  # approached along the viewing ray
+    side = frame(np.cross(z, ray))  # approached at right angles to it
+    poses = np.stack([side, front])
+    cos = np.einsum("ni,i->n", poses[:, :3, 0], ray)
+    assert cos[1] > 0.99 and abs(cos[0]) < 0.01
+    first = assign_grasps(poses, np.full(2, 0.04), K, M_HALF, OUT_HALF, SNORM, "first")
+    frontal = assign_grasps(poses, np.full(2, 0.04), K, M_HALF, OUT_HALF, SNORM, "frontal")
+    assert len(first) == len(frontal) == 1  # same cell, same bin: one target
+    assert first.indices.tolist() == [0] and frontal.indices.tolist() == [1]
+    swapped = assign_grasps(poses[::-1], np.full(2, 0.04), K, M_HALF, OUT_HALF, SNORM, "frontal")
+    assert swapped.indices.tolist() == [0]
+    with pytest.raises(ValueError, match="unknown assignment"):
+        assign_grasps(poses, np.full(2, 0.04), K, M_HALF, OUT_HALF, SNORM, "random")

@@ -68,6 +68,9 @@ def test_tiny_run_trains_checkpoints_and_resumes(tmp_path, tiny_dataset):
     ("[optimiser]\n", "unknown section"),
     ("[augment]\ninput_size = [100, 64]\n", "multiples of 32"),
     ("[train\n", "not valid TOML"),
+    ("[train]\nvariant = 'kgn'\nscale_anchor = 'depth'\n", "no scale head to anchor"),
+    ("[train]\nscale_anchor = 'sonar'\n", "unknown scale_anchor 'sonar'"),
+    ("[train]\nassignment = 'random'\n", "unknown \\[train\\] assignment 'random'"),
 ])
 def test_bad_configs_give_one_line(tmp_path, text, message):
     p = tmp_path / "bad.toml"
