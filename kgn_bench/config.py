@@ -7,6 +7,7 @@ out-of-range values and unknown object names are errors (``ConfigError``).
 
 from __future__ import annotations
 
+import types
 import typing
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -17,29 +18,65 @@ import tomllib
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.shapes import OBJECTS, PRIMITIVES
 
-__all__ = ["PROTOCOLS", "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig",
-           "apply_override", "load_task", "parse_section", "read_toml", "resolve_task"]
+__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES", "CameraConfig",
+           "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig", "apply_override", "load_task",
+           "parse_section", "read_toml", "resolve_task"]
 
-PROTOCOLS = ("single_object", "multi_object")
+PROTOCOLS = ("single_object", "multi_object", "pile", "packed")
+CLEARANCE_PROTOCOLS = ("multi_object", "pile", "packed")
+"""Protocols whose trial is a round of attempts on several objects (success rate and clear rate)."""
 SCORES = ("confidence_minus_error", "paper_literal")
+SELECTOR_MODES = ("assisted", "raw")
+RAW_SELECTOR = {"approach_search": 0.0, "closing_search": 0.0, "centre_range": 0.0, "level_deg": 0.0,
+                "min_bite": 0.0, "palm_margin": 0.0, "occlusion": False}
+"""What ``selector.mode = "raw"`` switches off: the pose search, centring, levelling, the bite, the palm margin
+and the occlusion check (``bench.selector``)."""
 
 
 class ConfigError(KGNBenchError, ValueError):
     """A task file that cannot be used; the message names the file and the key."""
 
 
+Span = float | tuple[float, float]
+"""A camera coordinate: one value (fixed), or ``[lo, hi]``, drawn uniformly per trial."""
+
+
 @dataclass(frozen=True)
 class CameraConfig:
-    """The fixed camera: on a sphere about ``target`` (world, m) at ``distance``, ``elevation_deg`` above
-    the table plane and ``azimuth_deg`` (``sim.camera.orbit_pose``: 0 = on the +y side, 90 = on the −x
-    side, over the robot). ``depth_noise``: strength of the D435-like depth model (``sim.depth_noise``) applied
-    to every capture; 0 (the default) gives the renderer's exact depth, 1 the typical D435."""
+    """The camera: on a sphere about ``target`` (world, m) at ``distance``, ``elevation_deg`` above the table
+    plane and ``azimuth_deg`` (``sim.camera.orbit_pose``: 0 = on the +y side, 90 = on the −x side, over the
+    robot). Each of the three is one value (a fixed camera, the default) or a range ``[lo, hi]`` from which
+    every trial draws its own camera uniformly (``draw``; seeded by the task's seed and the trial index, on a
+    stream of its own so the scene does not change with it). ``depth_noise``: strength of the D435-like depth
+    model (``sim.depth_noise``) applied to every capture; 0 (the default) gives the renderer's exact depth, 1
+    the typical D435."""
 
-    distance: float = 0.8
-    elevation_deg: float = 60.0
-    azimuth_deg: float = 90.0
+    distance: Span = 0.8
+    elevation_deg: Span = 60.0
+    azimuth_deg: Span = 90.0
     target: tuple[float, float, float] = (0.0, 0.0, 0.0)
     depth_noise: float = 0.0
+
+    def span(self, name: str) -> tuple[float, float]:
+        """``(lo, hi)`` of ``distance``, ``elevation_deg`` or ``azimuth_deg`` (lo = hi when fixed)."""
+        v = getattr(self, name)
+        return (float(v[0]), float(v[1])) if isinstance(v, tuple) else (float(v), float(v))
+
+    @property
+    def fixed(self) -> bool:
+        return all(lo == hi for lo, hi in map(self.span, CAMERA_SPANS))
+
+    def draw(self, rng) -> tuple[float, float, float]:
+        """``(distance m, elevation °, azimuth °)`` of one trial: each range drawn uniformly from ``rng`` (in
+        that order), fixed values as they are."""
+        out = []
+        for name in CAMERA_SPANS:
+            lo, hi = self.span(name)
+            out.append(lo if lo == hi else float(rng.uniform(lo, hi)))
+        return out[0], out[1], out[2]
+
+
+CAMERA_SPANS = ("distance", "elevation_deg", "azimuth_deg")
 
 
 @dataclass(frozen=True)
@@ -60,8 +97,14 @@ class SelectorConfig:
     ``results/sweeps/palm_margin.md``).
     ``min_bite`` (m, 0 = off): how far up from the fingertips the enclosed observed points must reach, unless
     the table stops the fingertips first (the enclosure check; the pose search then pushes a shallow grasp
-    deeper; default 0.01; ``results/sweeps/min_bite.md``)."""
+    deeper; default 0.01; ``results/sweeps/min_bite.md``).
+    ``occlusion``: whether the palm and wrist must stay out of space the camera cannot see.
+    ``mode``: ``assisted`` (the default: everything above) or ``raw``, detector-only execution: the
+    highest-scoring candidate that passes the paper's checks (width, collision of the bare gripper with the
+    observed cloud and the table, points between the fingers, IK) is executed exactly as predicted; raw
+    ignores the settings in ``RAW_SELECTOR`` (``effective``)."""
 
+    mode: str = "assisted"
     score: str = "confidence_minus_error"
     reprojection_weight: float = 0.0
     max_candidates: int = 1000
@@ -79,6 +122,11 @@ class SelectorConfig:
     level_deg: float = 30.0
     palm_margin: float = 0.01
     min_bite: float = 0.01
+    occlusion: bool = True
+
+    def effective(self) -> SelectorConfig:
+        """The settings the selector runs with: ``RAW_SELECTOR`` applied in raw mode, these otherwise."""
+        return replace(self, **RAW_SELECTOR) if self.mode == "raw" else self
 
 
 @dataclass(frozen=True)
@@ -112,6 +160,11 @@ class TaskConfig:
     execution: ExecutionConfig = field(default_factory=ExecutionConfig)
 
     @property
+    def clearance(self) -> bool:
+        """Whether a trial is a round of attempts on several objects (``CLEARANCE_PROTOCOLS``)."""
+        return self.protocol in CLEARANCE_PROTOCOLS
+
+    @property
     def n_trials(self) -> int:
         return self.trials * len(self.objects) if self.protocol == "single_object" else self.trials
 
@@ -131,6 +184,13 @@ def _coerce(where: str, key: str, value: Any, hint: Any) -> Any:
     accepted), ``str``, and tuples of numbers from TOML lists (``tuple[float, float]`` fixed length,
     ``tuple[int, ...]`` any length; elements typed like the hint's)."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        for arm in args:
+            try:
+                return _coerce(where, key, value, arm)
+            except ConfigError:
+                continue
+        raise ConfigError(f"{where}: {key} must be a number or a list of 2 numbers [lo, hi], got {value!r}")
     if origin is tuple:
         variable = len(args) == 2 and args[1] is Ellipsis
         element = args[0] if args else float
@@ -284,14 +344,18 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         raise ConfigError(f"{where}: selector.search_step must be in [0.0005, 0.05] m, got {sel.search_step}")
     if cfg.selector.point_stride < 1:
         raise ConfigError(f"{where}: selector.point_stride must be ≥ 1, got {cfg.selector.point_stride}")
+    if sel.mode not in SELECTOR_MODES:
+        raise ConfigError(f"{where}: selector.mode must be one of {', '.join(SELECTOR_MODES)}, got {sel.mode!r}")
     if cfg.selector.score not in SCORES:
         raise ConfigError(f"{where}: selector.score must be one of {', '.join(SCORES)}, got {cfg.selector.score!r}")
     if not 0.0 <= cfg.camera.depth_noise <= 10.0:
         raise ConfigError(f"{where}: camera.depth_noise must be in [0, 10], got {cfg.camera.depth_noise}")
-    if not 0.3 <= cfg.camera.distance <= 2.0:
-        raise ConfigError(f"{where}: camera.distance must be in [0.3, 2.0] m, got {cfg.camera.distance}")
-    if not 10.0 <= cfg.camera.elevation_deg <= 90.0:
-        raise ConfigError(f"{where}: camera.elevation_deg must be in [10, 90], got {cfg.camera.elevation_deg}")
+    for name, (lo_ok, hi_ok, unit) in {"distance": (0.3, 2.0, " m"), "elevation_deg": (10.0, 90.0, ""),
+                                        "azimuth_deg": (-360.0, 360.0, "")}.items():
+        lo, hi = cfg.camera.span(name)
+        if not (lo_ok <= lo <= hi <= hi_ok):
+            raise ConfigError(f"{where}: camera.{name} must lie in [{lo_ok:g}, {hi_ok:g}]{unit} (a range as "
+                              f"[lo, hi] with lo ≤ hi), got {getattr(cfg.camera, name)!r}")
     if cfg.execution.max_consecutive_failures < 1:
         raise ConfigError(f"{where}: execution.max_consecutive_failures must be ≥ 1")
 
@@ -311,14 +375,16 @@ def apply_override(cfg: TaskConfig, key: str, text: str) -> TaskConfig:
         known = ", ".join(f"{section}.{f.name}" for f in fields(current))
         raise ConfigError(f"unknown setting {key!r} (known: {known})")
     default = getattr(current, name)
+    hint = typing.get_type_hints(type(current))[name]
     value: Any = text
     if isinstance(default, (bool, int, float, tuple)):
+        as_list = "," in text if hint == Span else isinstance(default, tuple)
         try:
-            parsed = tomllib.loads(f"v = {text}" if not isinstance(default, tuple) else f"v = [{text}]")["v"]
+            parsed = tomllib.loads(f"v = [{text}]" if as_list else f"v = {text}")["v"]
         except tomllib.TOMLDecodeError:
             raise ConfigError(f"setting {key}: cannot read {text!r} as {type(default).__name__}") from None
         value = parsed
-    value = _coerce(f"setting {key}", name, value, typing.get_type_hints(type(current))[name])
+    value = _coerce(f"setting {key}", name, value, hint)
     out = replace(cfg, **{section: replace(current, **{name: value})})
     validate(out, f"setting {key}={text}")
     return out

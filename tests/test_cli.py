@@ -89,7 +89,8 @@ def test_export_eval_and_show_commands(tiny_dataset, tmp_path, capsys, small_mod
     shipped = load_checkpoint(tmp_path / "w" / "mine.pt")
     assert "optimizer" not in shipped and shipped["epoch"] == 1
     card = (tmp_path / "w" / "mine.md").read_text()
-    assert "| variant | `kgnv2` |" in card and "abc1234" in card and "GSR 25.0 % GCR n/a OSR 50.0 %" in card
+    assert "| variant | `kgnv2`, scale head: absolute distance |" in card and "abc1234" in card
+    assert "GSR 25.0 % GCR n/a OSR 50.0 %" in card
 
     weights = str(tmp_path / "w" / "mine.pt")
     assert main(["eval", "vision", "--weights", weights, "--data", str(root), "--views", "2",

@@ -1,6 +1,7 @@
 """Task files: the shipped tasks load, and every kind of bad file is a ConfigError naming the file and the problem."""
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -57,7 +58,7 @@ def test_defaults_fill_optional_sections(tmp_path):
         (HEAD + "[camera]\nzoom = 2.0\n", "unknown key 'zoom'"),
         (HEAD + "colour = 'red'\n", "[task] unknown key 'colour'"),
         (HEAD + "[objects]\nset = ['cuboid']\ncount = 3\n", "[objects] unknown key 'count'"),
-        (HEAD + "[camera]\ndistance = 'far'\n", "distance must be float, got 'far'"),
+        (HEAD + "[camera]\ndistance = 'far'\n", "distance must be a number or a list of 2 numbers [lo, hi], got 'far'"),
         (HEAD + "[execution]\nmax_attempts_per_object = 2.5\n", "max_attempts_per_object must be int"),
         (HEAD + "[selector]\nmax_candidates = true\n", "max_candidates must be int"),
         ('[task]\nname = "t"\nprotocol = "single_object"\ntrials = "ten"\n', "trials must be int"),
@@ -69,8 +70,8 @@ def test_defaults_fill_optional_sections(tmp_path):
         ('[task]\nname = "t"\n', "[task] needs 'protocol'"),
         ('[task]\nname = "t"\nprotocol = "single_object"\ntrials = 0\n', "trials must be ≥ 1"),
         (HEAD + "[selector]\nscore = 'c_times_re'\n", "selector.score must be one of"),
-        (HEAD + "[camera]\ndistance = 5.0\n", "camera.distance must be in [0.3, 2.0]"),
-        (HEAD + "[camera]\nelevation_deg = 5\n", "camera.elevation_deg must be in [10, 90]"),
+        (HEAD + "[camera]\ndistance = 5.0\n", "camera.distance must lie in [0.3, 2] m"),
+        (HEAD + "[camera]\nelevation_deg = 5\n", "camera.elevation_deg must lie in [10, 90]"),
         (HEAD + "[execution]\nmax_consecutive_failures = 0\n", "max_consecutive_failures must be ≥ 1"),
     ],
     ids=[
@@ -185,3 +186,42 @@ def test_apply_override_sets_one_typed_value_and_validates_it():
     ]:
         with pytest.raises(ConfigError, match=re.escape(fragment)):
             apply_override(t, key, value)
+
+
+def test_camera_ranges_parse_draw_per_trial_and_validate(tmp_path):
+    import numpy as np
+
+    from kgn_bench.bench.trial import camera_coordinates, camera_pose
+
+    p = tmp_path / "ranged.toml"
+    p.write_text(HEAD + "[camera]\ndistance = [0.6, 1.0]\nelevation_deg = [30, 90]\nazimuth_deg = [-45, 45]\n")
+    t = load_task(p)
+    assert t.camera.distance == (0.6, 1.0) and not t.camera.fixed and load_task("single_object").camera.fixed
+    coords = np.array([camera_coordinates(t, i) for i in range(40)])
+    assert np.all((coords >= [0.6, 30, -45]) & (coords <= [1.0, 90, 45])) and len(np.unique(coords[:, 0])) == 40
+    np.testing.assert_array_equal(camera_pose(t, 3), camera_pose(t, 3))  # seeded per trial
+    assert not np.allclose(camera_pose(t, 3), camera_pose(t, 4))
+    assert camera_coordinates(replace(t, seed=1), 3) != camera_coordinates(t, 3)
+    eye = camera_pose(t, 5)[:3, 3]
+    assert np.linalg.norm(eye) == pytest.approx(camera_coordinates(t, 5)[0])
+    for body, fragment in (("elevation_deg = [90, 30]", "camera.elevation_deg must lie in [10, 90]"),
+                           ("distance = [0.1, 1.0]", "camera.distance must lie in [0.3, 2]"),
+                           ("distance = [0.6, 0.8, 1.0]", "distance must be a number or a list of 2 numbers")):
+        p.write_text(HEAD + f"[camera]\n{body}\n")
+        with pytest.raises(ConfigError, match=re.escape(fragment)):
+            load_task(p)
+
+
+def test_selector_mode_and_the_clutter_protocols():
+    from kgn_bench.config import RAW_SELECTOR, apply_override
+
+    for name in ("pile", "packed"):
+        t = load_task(name)
+        assert t.protocol == name and t.clearance and t.selector.mode == "raw"
+        assert t.execution.max_consecutive_failures == 2
+    raw = load_task("single_object").selector
+    assert raw.mode == "assisted" and raw.effective() == raw
+    eff = apply_override(load_task("single_object"), "selector.mode", "raw").selector.effective()
+    assert all(getattr(eff, k) == v for k, v in RAW_SELECTOR.items())
+    with pytest.raises(ConfigError, match=r"selector\.mode must be one of assisted, raw"):
+        apply_override(load_task("single_object"), "selector.mode", "blind")

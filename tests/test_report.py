@@ -77,3 +77,30 @@ def test_bad_run_folders_are_named(tmp_path):
         build_report(load_summaries([a, b]))
     with pytest.raises(ReportError, match="no runs"):
         build_report([])
+
+
+def test_the_hard_tier_is_its_own_table_with_gsr_dr_fallen_and_giga(tmp_path):
+    def hard(folder, task, protocol, detector, success, clear, fallen):
+        f = _run(folder, task, detector, success, clear=clear)
+        s = json.loads((f / "summary.json").read_text())
+        s.update(protocol=protocol, fell_at_setup=0, fallen=fallen)
+        (f / "summary.json").write_text(json.dumps(s))
+        return f
+
+    runs = [_run(tmp_path / "a", "single_object", "kgnv2", (114, 120)),
+            hard(tmp_path / "b", "pile", "pile", "kgnv2", (30, 60), (30, 50), 2),
+            hard(tmp_path / "c", "pile_assisted", "pile", "kgnv2", (45, 60), (45, 50), 0),
+            hard(tmp_path / "d", "packed", "packed", "oracle", (49, 50), (49, 50), 0)]
+    text, payload = build_report(load_summaries(runs), tmp_path / "out")
+    lines = text.splitlines()
+    main_header = next(line for line in lines if line.startswith("| detector | single"))
+    assert "pile" not in main_header  # the clutter runs are not main-table columns
+    i = lines.index("## Hard tier: pile and packed clutter")
+    header = next(line for line in lines[i:] if line.startswith("| detector |"))
+    assert header == "| detector | packed GSR | packed DR | pile GSR | pile DR | pile_assisted GSR | pile_assisted DR |"
+    kgnv2 = next(line for line in lines[i:] if line.startswith("| kgnv2 |"))
+    assert kgnv2.startswith("| kgnv2 | — | — | 50.0") and "(45/50)" in kgnv2
+    assert "kgnv2 pile: 0 while building, 2 during the rounds" in text
+    assert "| GIGA (published) | 83.5 | 84.3 | 69.3 | 49.8 |" in text and "free-floating hand" in text
+    assert payload["fallen"]["kgnv2/pile"] == {"fell_at_setup": 0, "fallen": 2}
+    assert payload["detectors"]["oracle"]["packed success"]["k"] == 49

@@ -314,7 +314,7 @@ def test_a_physics_fault_is_the_trials_physics_error_and_the_run_goes_on(tmp_pat
     real = scene_module.arena_megabytes
     # trial 1's scene gets a 20 KB arena: MuJoCo's stack overflows (mujoco.FatalError) while it is built
     monkeypatch.setattr(scene_module, "arena_megabytes",
-                        lambda objects: 0.02 if objects[0].shape.name == "cylinder" else real(objects))
+                        lambda objects: 0.02 if objects and objects[0].shape.name == "cylinder" else real(objects))
     p = tmp_path / "two.toml"
     p.write_text('[task]\nname = "two"\nprotocol = "single_object"\ntrials = 1\n'
                  '[objects]\nset = ["cuboid", "cylinder", "sphere"]\n')
@@ -399,3 +399,23 @@ def test_a_full_disk_is_one_line_naming_the_file(tiny_disk, tmp_path, capsys):
     assert main(argv) == 2
     assert capsys.readouterr().err == f"kgn-bench: error: cannot write {out}/trials.jsonl: disk full\n"
     assert read_trials(out / "trials.jsonl") == [] or len(read_trials(out / "trials.jsonl")) < 2  # nothing corrupt
+
+
+@pytest.mark.parametrize("protocol", ["pile", "packed"])
+def test_clutter_rounds_end_as_published_and_count_what_fell(tmp_path, protocol):
+    """A pile or packed round with the oracle: objects on the table at the start, attempts until the table is
+    clear, 2 failures in a row or one attempt with nothing to execute; the record counts what fell."""
+    task = replace(load_task(protocol), objects_per_scene=3, trials=2)
+    result = run_benchmark(task, "oracle", tmp_path / protocol, progress=False)
+    for record in read_trials(tmp_path / protocol / "trials.jsonl"):
+        assert record["protocol"] == protocol and len(record["objects"]) == 3
+        assert record["placed"] + record["fell_at_setup"] == 3
+        attempts = record["attempts"]
+        reasons = [a["reason"] for a in attempts]
+        assert all(r not in ("no_candidate", "unreachable") for r in reasons[:-1])  # those end the round
+        tail = len(attempts) - max([i + 1 for i, a in enumerate(attempts) if a["success"]], default=0)
+        ended = (record["removed"] == record["placed"] or tail == 2 or reasons[-1] in ("no_candidate", "unreachable")
+                 or len(attempts) == task.execution.max_attempts_per_object * 3)
+        assert ended and record["removed"] + record["fallen"] <= record["placed"]
+    summary = result.summary
+    assert {"success", "clear", "scenes_cleared"} <= set(summary["rates"]) and "fallen" in summary

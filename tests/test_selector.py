@@ -17,7 +17,7 @@ from kgn_bench.bench.selector import (
     select_grasp,
 )
 from kgn_bench.config import ExecutionConfig, SelectorConfig
-from kgn_bench.geometry import make_pose, rot_z
+from kgn_bench.geometry import make_pose, rot_y, rot_z
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q
@@ -393,3 +393,32 @@ def test_valid_candidates():
     poses[2, :3, :3] = rot_z(0.3) @ np.diag([1.0, 1.0, 1.0 + 1e-3])  # slightly scaled
     assert valid_candidates(poses, np.ones(3), np.ones(3)).tolist() == [True, False, False]
     assert valid_candidates(np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0)).shape == (0,)
+
+
+RAW = SelectorConfig(mode="raw")  # detector-only execution, whatever the refinement settings say
+
+
+def test_raw_mode_executes_the_candidate_exactly_as_predicted(points, ik):
+    """Raw mode: what passes is executed at the predicted pose (no grasp_depth push, no levelling), and what
+    only the pose search, levelling or centring would repair is rejected where it is."""
+    grasp = _pose((0.0, 0.0, 0.03))
+    sel = _select([grasp], [0.06], points, ik, cfg=RAW)
+    assert sel.index == 0  # executed at the candidate, pushed by the executor's grasp_depth as in every mode
+    np.testing.assert_allclose(sel.grasp[:3, 3], grasp[:3, 3] - [0.0, 0.0, EXEC.grasp_depth], atol=1e-12)
+    # too deep by 2 cm: the assisted search pulls it back, raw counts the collision
+    deep = _pose((0.0, 0.0, -0.02))
+    assert _select([deep], [0.06], points, ik, cfg=SEARCH).index == 0
+    sel = _select([deep], [0.06], points, ik, cfg=RAW)
+    assert sel.index is None and sel.rejected["collision"] == 1
+    # 2 cm above the box top: the push leaves the fingertips 1 cm above it, enclosing nothing
+    assert _select([_pose((0.0, 0.0, HEIGHT + 0.02))], [0.06], points, ik, cfg=RAW).rejected["enclosure"] == 1
+    # aimed 7 mm above it: pushed to 3 mm into the top, no bite asked for (assisted pushes it to 1.3 cm)
+    sel = _select([_pose((0.0, 0.0, HEIGHT + 0.007))], [0.06], points, ik, cfg=RAW)
+    assert sel.index == 0 and sel.grasp[2, 3] == pytest.approx(HEIGHT - 0.003)
+    # a tilted top-down grasp is not levelled
+    tilted = grasp.copy()
+    tilted[:3, :3] = grasp[:3, :3] @ rot_y(0.2)
+    sel = _select([tilted], [0.06], points, ik, cfg=RAW)
+    assert sel.index == 0
+    assert abs(sel.grasp[2, 2]) == pytest.approx(abs(tilted[2, 2]), abs=1e-9) and abs(tilted[2, 2]) > 0.1
+    assert SelectorConfig(mode="raw", approach_search=0.05).effective() == RAW.effective()

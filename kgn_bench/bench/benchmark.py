@@ -7,16 +7,18 @@ A plan file (``tasks/benchmark.toml``)::
     detectors = ["kgnv2", "kgn", "kgn_depth", "antipodal", "random", "oracle"]
 
 A plan is named by its path or its bundled name (``benchmark``); its task names are looked up beside the
-plan file, then among the bundled tasks. Runs go to ``RUNS/<task>/<detector>`` and resume like any run;
+plan file, then among the bundled tasks. A task named ``name@mode`` is task ``name`` with ``selector.mode`` set
+to ``mode`` (``raw`` or ``assisted``), run and reported as ``name_mode``: one task file gives both the
+detector-only and the assisted row. Runs go to ``RUNS/<task>/<detector>`` and resume like any run;
 all detectors see the same scenes because a trial's scene depends only on the task's seed and the trial index.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-from kgn_bench.config import ConfigError, TaskConfig, load_task, read_toml, resolve_task
+from kgn_bench.config import SELECTOR_MODES, ConfigError, TaskConfig, apply_override, load_task, read_toml, resolve_task
 
 from .runner import run_benchmark
 
@@ -59,9 +61,18 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
             raise ConfigError(f"{path}: {e}") from None
     names = [n for n in names if not tasks or n in tasks]
     dets = [d for d in dets if not detectors or d in detectors]
-    loaded = tuple(load_task(path.parent / f"{n}.toml" if (path.parent / f"{n}.toml").is_file() else n)
-                   for n in names)
-    return BenchmarkPlan(loaded, tuple(dets))
+    return BenchmarkPlan(tuple(_plan_task(path, n) for n in names), tuple(dets))
+
+
+def _plan_task(plan: Path, entry: str) -> TaskConfig:
+    """The task of a plan entry ``name`` or ``name@mode`` (module docstring)."""
+    name, _, mode = entry.partition("@")
+    task = load_task(plan.parent / f"{name}.toml" if (plan.parent / f"{name}.toml").is_file() else name)
+    if not mode:
+        return task
+    if mode not in SELECTOR_MODES:
+        raise ConfigError(f"{plan}: task {entry!r}: mode must be one of {', '.join(SELECTOR_MODES)}")
+    return replace(apply_override(task, "selector.mode", mode), name=f"{task.name}_{mode}")
 
 
 def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True) -> list[Path]:

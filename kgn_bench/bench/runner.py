@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from kgn_bench.config import TaskConfig
+from kgn_bench.config import CLEARANCE_PROTOCOLS, TaskConfig
 from kgn_bench.environment import environment
 from kgn_bench.errors import KGNBenchError, OutputError
 from kgn_bench.io import atomic_write_text, describe_os_error
@@ -36,7 +36,7 @@ from kgn_bench.progress import Progress
 from kgn_bench.threads import pin_worker_threads, trial_threads
 
 from .stats import Rate, summarise, summary_markdown
-from .trial import TIMING_KEYS, run_trial
+from .trial import TIMING_KEYS, check_cameras, run_trial
 
 __all__ = ["RunError", "RunResult", "read_trials", "run_benchmark"]
 
@@ -204,7 +204,7 @@ def _run_one(args: tuple[TaskConfig, int, str | None]) -> dict[str, Any]:
 def _running_rates(records: list[dict[str, Any]]) -> str:
     attempts = [a for r in records for a in r["attempts"]]
     text = f"success {Rate(sum(a['success'] for a in attempts), len(attempts)).value * 100:.0f}%"
-    if records and records[0]["protocol"] == "multi_object":
+    if records and records[0]["protocol"] in CLEARANCE_PROTOCOLS:
         clear = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records))
         text += f" clear {clear.value * 100:.0f}%"
     return text
@@ -216,6 +216,7 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
     instance = build_detector(detector)  # fails here, in one line, before anything is written
+    check_cameras(task)  # and so does a camera that cannot see the workspace
     out = Path(out)
     identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
     with run_lock(out):

@@ -43,6 +43,13 @@ when the closing axis is within ``CENTRE_VIEW_DEG`` of perpendicular to the came
 origin: then both ends of the object along z face the camera, and the seen extent is the object's. (A closing
 axis along the ray sees only the near face, whose extent says nothing about the far one.)
 
+Raw mode (``selector.mode = "raw"``, ``config.RAW_SELECTOR``): no levelling, pose search, centring, bite,
+palm margin or occlusion check; the candidate that passes width, collision, enclosure and IK is executed at
+the pose the detector predicted (in the symmetric form the arm reaches), with the executor's own
+``grasp_depth`` push along the approach that every grasp of every mode gets (part of how the harness closes
+a gripper, not a correction of the pose: the labels are made for it, ``shapes.household``). What the
+assisted mode adds to that is what the selector repairs, not what the detector did.
+
 The observed points come from the depth image (world frame), never from the simulator. Poses are world
 frame ``T_world_grasp``. Each candidate is tried in both of its 180°-symmetric forms (the one closer to the
 arm's ready wrist first). The executed grasp is pushed ``grasp_depth`` further along its approach when the
@@ -316,14 +323,17 @@ class GraspSelector:
     """
 
     def __init__(self, cfg: SelectorConfig, execution: ExecutionConfig, ik: IK) -> None:
+        self.mode = cfg.mode
+        cfg = cfg.effective()
         self.cfg, self.execution, self.ik = cfg, execution, ik
+        self.grasp_depth = execution.grasp_depth
         self.back = execution.pregrasp_distance
         self.ready_closing = ik.tcp_pose(READY_Q)[:3, 2]
         self.palm_samples = np.concatenate([_box_samples(b.swept(self.back))
                                             for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])
         self.offsets = search_offsets(cfg)
         # every grasp-frame point a check can look at lies in the boxes' union, moved by the largest shifts
-        self.margin = np.array([float(np.abs(self.offsets[:, 0]).max(initial=0.0)) + execution.grasp_depth, 0.0,
+        self.margin = np.array([float(np.abs(self.offsets[:, 0]).max(initial=0.0)) + self.grasp_depth, 0.0,
                                 float(np.abs(self.offsets[:, 1]).max(initial=0.0)) + cfg.centre_range]) + 1e-6
 
     def select(self, poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
@@ -376,7 +386,7 @@ class GraspSelector:
                ) -> tuple[np.ndarray | None, int]:
         """The candidate moved by the first search shift that passes the gripper prior, then centred on the
         observed points between the jaws; ``(None, code)`` with the failed check of the unshifted pose."""
-        cfg, execution = self.cfg, self.execution
+        cfg = self.cfg
         boxes = [(_grown(b, cfg.palm_margin) if b.name in ("palm", "wrist") else b).swept(self.back)
                  for b in GRIPPER.boxes(open_w)]
         R = pose[:3, :3]
@@ -384,8 +394,8 @@ class GraspSelector:
         lo, hi = _union_bounds([*boxes, GRIPPER.closing_region(open_w)])
         local0 = local0[np.all((local0 > lo - self.margin) & (local0 < hi + self.margin), axis=1)]
         shifts = np.c_[self.offsets[:, 0], np.zeros(len(self.offsets)), self.offsets[:, 1]]
-        shifts[:, 0] += _grasp_depths(pose, shifts, open_w, execution.grasp_depth, cfg.table_clearance)
-        args = (w, local0, boxes, self.palm_samples, view, cfg)
+        shifts[:, 0] += _grasp_depths(pose, shifts, open_w, self.grasp_depth, cfg.table_clearance)
+        args = (w, local0, boxes, self.palm_samples, view if cfg.occlusion else None, cfg)
         codes = _failures(pose, shifts[:1], *args)  # most candidates pass or fail where they are
         if codes[0] != 0 and len(shifts) > 1:
             codes = np.concatenate([codes, _failures(pose, shifts[1:], *args)])

@@ -13,6 +13,8 @@ from typing import Any
 
 from scipy.stats import binomtest
 
+from kgn_bench.config import CLEARANCE_PROTOCOLS
+
 from .attempt import FAILURE_REASONS
 from .selector import REJECTIONS
 
@@ -78,7 +80,7 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
     for a in attempts:
         rejected.update(a.get("rejected", {}))
     rates = {"success": Rate(successes, len(attempts)).to_dict()}
-    if run.get("protocol") == "multi_object":
+    if run.get("protocol") in CLEARANCE_PROTOCOLS:
         rates["clear"] = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records)).to_dict()
         rates["scenes_cleared"] = Rate(sum(r["removed"] == r["placed"] for r in records), len(records)).to_dict()
     per_object: dict[str, list[int]] = {}
@@ -101,7 +103,16 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
         "failures": {reason: failures.get(reason, 0) for reason in FAILURE_REASONS},
         "per_object": {name: Rate(k, n).to_dict() for name, (k, n) in sorted(per_object.items())},
         "selector_rejections": {name: rejected.get(name, 0) for name in REJECTIONS},
+        **_clutter_totals(records),
     }
+
+
+def _clutter_totals(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Pile and packed runs: objects that left the table while the scene was built, and during the rounds."""
+    if not records or "fallen" not in records[0]:
+        return {}
+    return {"fell_at_setup": sum(r.get("fell_at_setup", 0) for r in records),
+            "fallen": sum(r.get("fallen", 0) for r in records)}
 
 
 def _rate_row(name: str, d: dict[str, Any]) -> str:

@@ -37,7 +37,7 @@ def _pct(rate: dict[str, Any]) -> str:
 
 def sweep_markdown(task: TaskConfig, detector: str, key: str, points: list[SweepPoint]) -> str:
     """The sweep's table: one row per value."""
-    clearance = task.protocol == "multi_object"
+    clearance = task.clearance
     head = f"| {key} | success % [95 % CI] (k/n) |" + (" clear % [95 % CI] (k/n) |" if clearance else "")
     lines = [f"# Sweep of {key}: {task.name} with {detector} (seed {task.seed})", "", head + " main failures |",
              "|---|---|" + ("---|" if clearance else "") + "---|"]

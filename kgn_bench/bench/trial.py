@@ -1,9 +1,18 @@
 """Benchmark trials: a work-cell scene, then capture → detect → select → execute until the protocol ends.
 
-``single_object``: one object, one attempt. ``multi_object`` (clearance): ``objects_per_scene`` objects,
-attempts until the table is clear, ``max_consecutive_failures`` failures in a row, a physics error, or
-``max_attempts_per_object × objects`` attempts. Everything random in trial ``index`` is drawn from
-``default_rng([seed, index])``, so a trial's outcome depends only on the task, its seed and its index.
+``single_object``: one object, one attempt. ``multi_object`` (clearance): ``objects_per_scene`` objects
+spread on the table (``sim.placement.place_objects``), attempts until the table is clear,
+``max_consecutive_failures`` failures in a row, a physics error, or ``max_attempts_per_object × objects``
+attempts. ``pile`` and ``packed`` (VGN/GIGA's clutter rounds): the objects dropped into a box that is then
+lifted away, or standing upright side by side (``pile_objects``, ``pack_objects``); the round ends by the same
+rules and also as soon as no candidate passes the selector (``no_candidate`` or ``unreachable``), as in
+VGN. Objects that leave the table while the scene is built are not part of the round (``fell_at_setup``);
+objects pushed off it during the round are counted in ``fallen``.
+
+Everything random in trial ``index`` is drawn from ``default_rng([seed, index])``, so a trial's outcome
+depends only on the task, its seed and its index; the camera of a task with camera ranges is drawn from
+``default_rng([seed, index, CAMERA_STREAM])`` (``camera_pose``), so the scene is the same whatever the
+camera.
 
 The returned record is plain JSON data; its ``timing`` block (wall seconds) is the only part that varies
 between runs. Faults are outcomes, not crashes: a scene that cannot be built or a MuJoCo fault becomes a
@@ -25,32 +34,67 @@ from kgn_bench.shapes import shape_class
 from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.depth_noise import DepthNoise
-from kgn_bench.sim.placement import PlacementConfig, place_objects, settle
+from kgn_bench.sim.placement import PlacementConfig, add_pile_box, pack_objects, pile_objects, place_objects, settle
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.robot import PARK_Q, add_workcell, on_table
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
+from kgn_bench.sim.view_check import check_view
 
 from .attempt import AttemptResult, execute_grasp
 from .selector import DepthView, GraspSelector, Selection
 
-__all__ = ["TIMING_KEYS", "camera_pose", "run_trial", "trial_objects"]
+__all__ = ["CAMERA_STREAM", "ROUND_ENDERS", "TIMING_KEYS", "camera_coordinates", "camera_pose", "check_cameras",
+           "run_trial", "trial_objects"]
 
 TIMING_KEYS = ("setup", "render", "detect", "select", "simulate")
 RECORD_EVERY = 5
 """Record the state every 5 control ticks (20 Hz of simulated time)."""
 
 
-def camera_pose(task: TaskConfig) -> np.ndarray:
-    """The task's fixed camera, ``T_world_cam`` (OpenCV axes)."""
+CAMERA_STREAM = 7
+"""Third seed word of the camera draw (``camera_pose``)."""
+ROUND_ENDERS = ("no_candidate", "unreachable")
+"""Attempt outcomes that end a pile or packed round: nothing the selector would execute."""
+
+
+def camera_pose(task: TaskConfig, index: int = 0) -> np.ndarray:
+    """The camera of trial ``index``, ``T_world_cam`` (OpenCV axes): the task's fixed camera, or one drawn
+    from its ranges (``CameraConfig.draw``)."""
     c = task.camera
-    T = orbit_pose(c.distance, np.deg2rad(c.elevation_deg), np.deg2rad(c.azimuth_deg))
+    distance, elevation, azimuth = c.draw(np.random.default_rng([task.seed, index, CAMERA_STREAM]))
+    T = orbit_pose(distance, np.deg2rad(elevation), np.deg2rad(azimuth))
     T[:3, 3] += np.asarray(c.target)
     return T
 
 
+def camera_coordinates(task: TaskConfig, index: int) -> tuple[float, float, float]:
+    """``(distance m, elevation °, azimuth °)`` of trial ``index``'s camera (as ``camera_pose`` draws it)."""
+    return task.camera.draw(np.random.default_rng([task.seed, index, CAMERA_STREAM]))
+
+
+def check_cameras(task: TaskConfig, ik: IK | None = None) -> int:
+    """Refuse a task whose cameras do not all see the workspace (``sim.view_check``): every distinct trial
+    camera is checked on the empty work cell with the arm parked; ``ViewError`` names the first that fails,
+    with its trial and coordinates. Returns the number of cameras checked."""
+    scene = Scene([], extend=_pile_workcell if task.protocol == "pile" else add_workcell)
+    Executor(scene, ik or IK()).reset(PARK_Q)
+    seen: set[tuple[float, float, float]] = set()
+    with SceneRenderer(scene) as renderer:
+        for index in range(1 if task.camera.fixed else task.n_trials):
+            coords = camera_coordinates(task, index)
+            if coords in seen:
+                continue
+            seen.add(coords)
+            d, el, az = coords
+            where = "the camera" if task.camera.fixed else f"the camera of trial {index}"
+            check_view(renderer, scene, camera_pose(task, index), np.asarray(task.camera.target),
+                       f"{task.name}: {where} (distance {d:.2f} m, elevation {el:.0f}°, azimuth {az:.0f}°)")
+    return len(seen)
+
+
 def trial_objects(task: TaskConfig, index: int, rng: np.random.Generator) -> list[SceneObject]:
     """The objects of trial ``index``: for single_object the set's ``index // trials``-th object;
-    for multi_object ``objects_per_scene`` names drawn without replacement while the set allows."""
+    for the clearance protocols ``objects_per_scene`` names drawn without replacement while the set allows."""
     if task.protocol == "single_object":
         names = [task.objects[index // task.trials]]
     else:
@@ -77,19 +121,30 @@ SCENE_TRIES = 5
 def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]:
     """The trial's work cell with its objects placed and settled, the arm parked (retried on a blow-up)."""
     rng = np.random.default_rng([task.seed, index])
+    pile = task.protocol == "pile"
     for attempt in range(SCENE_TRIES):
-        scene = Scene(trial_objects(task, index, rng), extend=add_workcell)
+        scene = Scene(trial_objects(task, index, rng), extend=_pile_workcell if pile else add_workcell)
         executor = Executor(scene, ik)
         executor.reset(PARK_Q)
         try:
-            place_objects(scene, rng, PlacementConfig())
-            settle(scene, PlacementConfig())
+            if pile:
+                pile_objects(scene, rng)
+            elif task.protocol == "packed":
+                pack_objects(scene, rng)
+            else:
+                place_objects(scene, rng, PlacementConfig())
+                settle(scene, PlacementConfig())
         except PhysicsError:
             if attempt == SCENE_TRIES - 1:
                 raise
             continue
         return scene, executor
     raise PhysicsError(f"trial {index}: no stable scene")
+
+
+def _pile_workcell(root) -> None:
+    add_workcell(root)
+    add_pile_box(root)
 
 
 def _error_line(e: BaseException) -> str:
@@ -107,7 +162,15 @@ def _fault_record(task: TaskConfig, index: int, reason: str, detail: str, clock:
     reset): one failed attempt with ``reason``."""
     return {"index": index, "protocol": task.protocol, "objects": names, "placed": len(placed),
             "placed_objects": placed, "removed": 0, "attempts": [_failed_attempt(reason, detail)],
+            **_clutter_counts(task, len(names) - len(placed), 0),
             "timing": {k: round(v, 4) for k, v in clock.totals.items()}}
+
+
+def _clutter_counts(task: TaskConfig, fell_at_setup: int, fallen: int) -> dict[str, int]:
+    """The pile and packed records' extra counts (none for the other protocols, whose records stay as they were)."""
+    if task.protocol not in ("pile", "packed"):
+        return {}
+    return {"fell_at_setup": fell_at_setup, "fallen": fallen}
 
 
 def _prepare_detector(detector: Detector, task: TaskConfig, index: int, scene: Scene) -> None:
@@ -143,7 +206,8 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
         return _fault_record(task, index, "physics_error", f"no stable scene: {e}", clock, names, names)
     recording = _open_recording(record, task, index, scene, executor)
     names = [o.shape.name for o in scene.objects]
-    placed_names = [name for i, name in enumerate(names) if on_table(scene, i)]
+    placed = [i for i in range(len(names)) if on_table(scene, i)]
+    placed_names = [names[i] for i in placed]
     try:
         _prepare_detector(detector, task, index, scene)
     except Exception as e:  # a detector bug must not stop the run: record it
@@ -153,14 +217,17 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     clock.add("setup", t)
     attempts = _episode(task, index, scene, executor, detector, clock, names, recording)
     recording.close()
+    removed = int(sum(a["success"] for a in attempts))
+    left = sum(on_table(scene, i) for i in placed)
     return {
         "index": index,
         "protocol": task.protocol,
         "objects": names,
         "placed": len(placed_names),
         "placed_objects": placed_names,
-        "removed": int(sum(a["success"] for a in attempts)),
+        "removed": removed,
         "attempts": attempts,
+        **_clutter_counts(task, len(names) - len(placed), max(0, len(placed) - removed - left)),
         "timing": {k: round(v, 4) for k, v in clock.totals.items()},
     }
 
@@ -168,7 +235,7 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
 def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, detector: Detector, clock: _Clock,
              names: list[str], recording) -> list[dict[str, Any]]:
     """Capture, detect, select and execute until the protocol ends; returns the attempt records."""
-    cam = camera_pose(task)
+    cam = camera_pose(task, index)
     attempts: list[dict[str, Any]] = []
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
     consecutive = 0
@@ -194,6 +261,8 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
                               sel.index if shown else None)
             consecutive = 0 if attempt["success"] else consecutive + 1
             if attempt["reason"] == "physics_error":
+                break
+            if task.protocol in ("pile", "packed") and attempt["reason"] in ROUND_ENDERS:
                 break
     return attempts
 

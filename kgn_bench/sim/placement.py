@@ -1,21 +1,40 @@
 """Random object placement on the table and physical settling in MuJoCo.
 
-Each object gets a resting orientation drawn from its shape's ``rest_poses`` (by probability), a yaw
-~U[0, 2π) about world z and a position ``xy ~ N(0, σ²I)`` (σ = 6.25 cm, as the reference implementation), just
-above the table. Objects are placed one by one, redrawing a position that would interpenetrate an
-already placed object; then gravity settles them and the settled poses are the recorded ones.
+Three arrangements, all world frame (table top z = 0, table centre at the origin):
+
+* ``place_objects`` (the reference's, used by the data and the ``single_object`` / ``multi_object`` tasks):
+  each object gets a resting orientation drawn from its shape's ``rest_poses`` (by probability), a yaw
+  ~U[0, 2π) about world z and a position ``xy ~ N(0, σ²I)`` (σ = 6.25 cm), just above the table. Objects are
+  placed one by one, redrawing a position that would interpenetrate an already placed object; then gravity
+  settles them and the settled poses are the recorded ones.
+* ``pile_objects`` (VGN/GIGA's pile): an open box (``PileConfig``: inner half size, wall height) stands on the
+  table; the objects are dropped into it one at a time, each in a uniformly random orientation at
+  ``xy ~ U[−a, a]²`` above the current top of the pile, and left to come to rest; then the box is lifted away
+  and the pile settles. Objects may roll off the table then: they are reported, not an error.
+* ``pack_objects`` (VGN/GIGA's packed): every object stands upright (``upright_rotation``) with a random
+  yaw at ``xy ~ U[−h, h]²``, redrawn while it would interpenetrate one already placed; ``h`` grows by 10 %
+  after every ``tries_per_object`` failed draws, so ten objects still fit. Then gravity settles them.
+
+The box is a mocap body of the scene (``add_pile_box``), parked far above the work cell when not in use.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from kgn_bench.geometry import frame_from_xz, make_pose, rot_z
-from kgn_bench.sim.scene import TABLE_HALF_SIZE, TIMESTEP, PhysicsError, Scene
+from kgn_bench.sim.scene import GROUP_VISUAL, TABLE_HALF_SIZE, TIMESTEP, PhysicsError, Scene
 
-__all__ = ["PlacementConfig", "SettleStats", "initial_pose", "place_objects", "rectify_axisymmetric", "settle"]
+__all__ = ["PILE_BOX", "PileConfig", "PlacementConfig", "SettleStats", "add_pile_box", "initial_pose", "off_table",
+           "pack_objects", "pile_objects", "place_objects", "rectify_axisymmetric", "settle", "upright_rotation"]
+
+PILE_BOX = "pile_box"
+"""Name of the mocap body holding the pile box's walls."""
+_BOX_PARK = np.array([0.0, 0.0, 40.0])
 
 
 @dataclass(frozen=True)
@@ -32,6 +51,134 @@ class PlacementConfig:
     """Damping (N·s/m, N·m·s/rad) on the objects' free joints while settling only. Static rest poses do
     not depend on it; it removes the slow spin and roll that round contacts (a lying rod, a sphere
     pressed against a neighbour) otherwise accumulate numerically."""
+
+
+@dataclass(frozen=True)
+class PileConfig:
+    """The pile and packed arrangements (m, s). ``box_half``: inner half size of the pile box; ``box_height``:
+    its walls; ``drop_half``: objects are dropped at xy ~ U[−drop_half, drop_half]²; ``drop_gap``: their
+    lowest point starts this far above the top of what is already in the box; ``drop_settle``: how long each
+    dropped object may take to come to rest; ``packed_half``: half size of the square the packed objects stand
+    in (grown by 10 % after each ``tries_per_object`` failed draws)."""
+
+    box_half: float = 0.11
+    box_height: float = 0.16
+    wall: float = 0.01
+    drop_half: float = 0.05
+    drop_gap: float = 0.03
+    drop_settle: float = 1.0
+    packed_half: float = 0.08
+    tries_per_object: int = 100
+
+
+def add_pile_box(root, config: PileConfig = PileConfig()) -> None:
+    """Add the pile box (four walls on a mocap body, parked out of the way) to a scene's MJCF ``root``."""
+    box = root.worldbody.add("body", name=PILE_BOX, mocap=True, pos=_BOX_PARK)
+    h, t, H = config.box_half, config.wall, config.box_height
+    for k, (dx, dy, sx, sy) in enumerate(((h + t / 2, 0, t / 2, h + t), (-h - t / 2, 0, t / 2, h + t),
+                                          (0, h + t / 2, h, t / 2), (0, -h - t / 2, h, t / 2))):
+        box.add("geom", name=f"pile_wall{k}", type="box", size=(sx, sy, H / 2), pos=(dx, dy, H / 2),
+                rgba=(0.6, 0.6, 0.65, 1), contype=1, conaffinity=3, group=GROUP_VISUAL)
+
+
+def _move_box(scene: Scene, position: np.ndarray) -> None:
+    body = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, PILE_BOX)
+    if body < 0:
+        raise ValueError("the scene has no pile box: build it with add_pile_box")
+    scene.data.mocap_pos[scene.model.body_mocapid[body]] = position
+    scene.forward()
+
+
+def _top_of(scene: Scene, objects: np.ndarray) -> float:
+    """World z of the highest point of the bounding spheres of ``objects``' geoms (0 with none)."""
+    if len(objects) == 0:
+        return 0.0
+    geoms = np.flatnonzero(np.isin(scene.geom_label, objects + 1))
+    return float(np.max(scene.data.geom_xpos[geoms, 2] + scene.model.geom_rbound[geoms]))
+
+
+def upright_rotation(shape) -> np.ndarray:
+    """The rest orientation (``shape.rest_poses``) that keeps the shape's own +z most nearly up: every shape
+    is modelled standing on its base with +z up (a cylinder or a can on its end, a mug on its foot)."""
+    return max((r.R for r in shape.rest_poses()), key=lambda R: R[2, 2])
+
+
+def off_table(scene: Scene) -> list[int]:
+    """Objects whose origin is below the table top or outside its extent."""
+    out = []
+    for i in range(len(scene.objects)):
+        t = scene.object_pose(i)[:3, 3]
+        if t[2] < -0.01 or np.any(np.abs(t[:2]) > TABLE_HALF_SIZE):
+            out.append(i)
+    return out
+
+
+_UNIT_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+
+
+def _footprint_radius(scene: Scene, i: int) -> float:
+    """Radius (m) of a vertical cylinder about object ``i``'s origin that holds the corners of its geoms'
+    bounding boxes (``geom_aabb``, in each geom's frame)."""
+    geoms = np.flatnonzero(scene.geom_label == i + 1)
+    aabb = scene.model.geom_aabb[geoms]  # (G, 6): centre, half sizes
+    local = aabb[:, None, :3] + _UNIT_CORNERS[None] * aabb[:, None, 3:]
+    R = scene.data.geom_xmat[geoms].reshape(-1, 3, 3)
+    world = np.einsum("gij,gkj->gki", R, local) + scene.data.geom_xpos[geoms, None]
+    return float(np.max(np.linalg.norm(world[..., :2] - scene.object_pose(i)[:2, 3], axis=-1)))
+
+
+def _nested(scene: Scene, i: int) -> bool:
+    """Whether object ``i``'s origin lies inside the footprint of an object placed before it, or one of theirs
+    inside its own: a small object dropped inside a ring or an open cylinder touches nothing, but is not packed
+    beside it. (Kinematics must be current: ``object_contacts`` just ran them.)"""
+    xy = scene.object_pose(i)[:2, 3]
+    r_i = _footprint_radius(scene, i)
+    for j in range(i):
+        d = float(np.linalg.norm(scene.object_pose(j)[:2, 3] - xy))
+        if d < max(r_i, _footprint_radius(scene, j)):
+            return True
+    return False
+
+
+def pile_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = PileConfig(),
+                 placement: PlacementConfig = PlacementConfig()) -> None:
+    """Drop the objects one by one into the pile box, then lift the box away and let the pile settle."""
+    n = len(scene.objects)
+    for i in range(n):
+        scene.set_object_pose(i, make_pose(t=np.array([10.0 + 2.0 * i, 10.0, 1.0])))
+    _move_box(scene, np.zeros(3))
+    for i in range(n):
+        R = Rotation.random(random_state=rng).as_matrix()
+        xy = rng.uniform(-config.drop_half, config.drop_half, size=2)
+        z = _top_of(scene, np.arange(i)) + config.drop_gap - scene.objects[i].shape.lowest_point(R)
+        scene.set_object_pose(i, make_pose(R, np.array([xy[0], xy[1], z])))
+        scene.forward()
+        settle(scene, replace(placement, settle_time_max=config.drop_settle), strict=False)
+    _move_box(scene, _BOX_PARK)
+    settle(scene, placement, strict=False)
+
+
+def pack_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = PileConfig(),
+                 placement: PlacementConfig = PlacementConfig()) -> None:
+    """Stand the objects upright, tightly, in the packed square; ``PhysicsError`` if one finds no spot."""
+    n = len(scene.objects)
+    for i in range(n):
+        scene.set_object_pose(i, make_pose(t=np.array([10.0 + 2.0 * i, 10.0, 1.0])))
+    for i in range(n):
+        shape = scene.objects[i].shape
+        upright = upright_rotation(shape)
+        for attempt in range(10 * config.tries_per_object):
+            half = config.packed_half * 1.1 ** (attempt // config.tries_per_object)
+            R = rot_z(rng.uniform(0.0, 2.0 * np.pi)) @ upright
+            xy = rng.uniform(-half, half, size=2)
+            z = -shape.lowest_point(R) + placement.drop_height
+            scene.set_object_pose(i, make_pose(R, np.array([xy[0], xy[1], z])))
+            if not scene.object_contacts(i, np.arange(i)) and not _nested(scene, i):
+                break
+        else:
+            raise PhysicsError(f"no free spot for object {i} ({shape.name}) in the packed square")
+    scene.forward()
+    settle(scene, placement, strict=False)
 
 
 @dataclass
@@ -77,10 +224,11 @@ def place_objects(scene: Scene, rng: np.random.Generator, config: PlacementConfi
     scene.forward()
 
 
-def settle(scene: Scene, config: PlacementConfig = PlacementConfig()) -> SettleStats:
+def settle(scene: Scene, config: PlacementConfig = PlacementConfig(), strict: bool = True) -> SettleStats:
     """Let gravity act until every object is at rest (speeds under tolerance) or the time limit.
 
-    Raises ``PhysicsError`` if the state diverges or an object leaves the table top.
+    Raises ``PhysicsError`` if the state diverges or (``strict``) an object leaves the table top; objects
+    that left it are not counted when judging rest (they may still be falling to the floor).
     """
     chunk = 10
     steps = 0
@@ -95,14 +243,16 @@ def settle(scene: Scene, config: PlacementConfig = PlacementConfig()) -> SettleS
             steps += chunk
             if steps >= min_steps:
                 lin, ang = scene.object_speeds()
-                if np.all(lin < config.linear_tol) and np.all(ang < config.angular_tol):
+                judged = np.ones(len(lin), dtype=bool)
+                if not strict:
+                    judged[off_table(scene)] = False
+                if np.all(lin[judged] < config.linear_tol) and np.all(ang[judged] < config.angular_tol):
                     break
     finally:
         scene.model.dof_damping[dofs] = saved
-    for i in range(len(scene.objects)):
+    for i in off_table(scene) if strict else ():
         t = scene.object_pose(i)[:3, 3]
-        if t[2] < -0.01 or np.any(np.abs(t[:2]) > TABLE_HALF_SIZE):
-            raise PhysicsError(f"object {i} ({scene.objects[i].shape.name}) left the table at {np.round(t, 3)}")
+        raise PhysicsError(f"object {i} ({scene.objects[i].shape.name}) left the table at {np.round(t, 3)}")
     for i in range(len(scene.objects)):
         scene.data.qvel[scene.qvel_adr[i] : scene.qvel_adr[i] + 6] = 0.0
     scene.forward()

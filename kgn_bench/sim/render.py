@@ -67,6 +67,7 @@ class SceneRenderer:
         extent = m.stat.extent
         self._near = float(m.vis.map.znear * extent)
         self._far = float(m.vis.map.zfar * extent)
+        self._last_geoms: tuple[np.ndarray, np.ndarray] | None = None
 
     def __enter__(self) -> SceneRenderer:
         return self
@@ -107,14 +108,25 @@ class SceneRenderer:
         segid = ids[..., 0] | (ids[..., 1] << 8) | (ids[..., 2] << 16)
         # segid 0 is background; segid k > 0 is the (k − 1)-th geom of the abstract scene
         seg_to_label = np.zeros(scn.ngeom + 1, dtype=np.uint8)
+        seg_to_geom = np.full(scn.ngeom + 1, -1, dtype=np.int32)
         for k in range(scn.ngeom):
             g = scn.geoms[k]
             if g.objtype == mujoco.mjtObj.mjOBJ_GEOM and g.segid >= 0:
                 seg_to_label[g.segid + 1] = self.scene.geom_label[g.objid]
-        mask = seg_to_label[np.clip(segid, 0, scn.ngeom)]
+                seg_to_geom[g.segid + 1] = g.objid
+        segid = np.clip(segid, 0, scn.ngeom)
+        self._last_geoms = (segid, seg_to_geom)
+        mask = seg_to_label[segid]
         depth = self._linear_depth(np.flipud(self._zbuf))
         depth[segid == 0] = 0.0
         return RGBD(rgb=rgb, depth=depth, mask=mask)
+
+    def last_geom_ids(self) -> np.ndarray:
+        """(H, W) int32: the model geom id under each pixel of the last ``render`` (−1 where nothing was hit)."""
+        if self._last_geoms is None:
+            raise RuntimeError("nothing rendered yet")
+        segid, seg_to_geom = self._last_geoms
+        return seg_to_geom[segid]
 
     def _linear_depth(self, zbuf: np.ndarray) -> np.ndarray:
         """Metric planar depth from the depth buffer read with ``mjDEPTH_ZERONEAR`` (0 at near, 1 at far).
