@@ -29,14 +29,15 @@ test: setup
 	$(BIN)/ruff check kgn_bench tests
 	$(BIN)/pytest -q
 
-# The regression check that the test suite runs (tests/test_ci_regression.py), with its tables printed:
-# the fixed-seed clearance task with kgnv2 and the oracle against results/ci_baseline.json.
+# The regression checks that the test suite runs (tests/test_ci_regression.py), with their tables printed: the
+# fixed-seed clearance task and the fixed-seed pile task (raw mode), each with kgnv2 and the oracle, against
+# results/ci_baseline.json and results/ci_baseline_pile.json.
 regression: setup
-	for d in kgnv2 oracle; do \
-	  rm -rf runs/ci_regression_$$d; \
-	  $(BIN)/kgn-bench run tasks/ci_regression.toml --detector $$d --workers 2 --quiet --out runs/ci_regression_$$d \
-	    > /dev/null && $(BIN)/kgn-bench check runs/ci_regression_$$d --baseline results/ci_baseline.json || exit 1; \
-	done
+	for t in ci_regression:ci_baseline ci_pile:ci_baseline_pile; do for d in kgnv2 oracle; do \
+	  task=$${t%%:*}; base=$${t##*:}; rm -rf runs/$${task}_$$d; \
+	  $(BIN)/kgn-bench run tasks/$$task.toml --detector $$d --workers 2 --quiet --out runs/$${task}_$$d \
+	    > /dev/null && $(BIN)/kgn-bench check runs/$${task}_$$d --baseline results/$$base.json || exit 1; \
+	done; done
 
 # Build the wheel, install it into a separate venv and run one oracle and one kgnv2 trial from a folder
 # outside the clone (what `pip install .` gives a user; .ci/run calls it).

@@ -142,18 +142,26 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from kgn_bench.bench.sweep import run_sweep, sweep_markdown
+    from kgn_bench.bench.sweep import detector_sweep_markdown, run_detector_sweep, run_sweep, sweep_markdown
     from kgn_bench.config import load_task, validate
 
     task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
     validate(task, str(args.task))
-    out = args.out or Path("runs") / f"sweep_{task.name}_{args.detector}_{args.param}"
+    detectors = list(dict.fromkeys(args.detector))
+    name = detectors[0] if len(detectors) == 1 else "detectors"
+    out = args.out or Path("runs") / f"sweep_{task.name}_{name}_{args.param}"
     _check_workers(args.workers)
     _writable(out, "sweep folder")
-    points = run_sweep(task, args.detector, args.param, args.values, out, workers=args.workers,
-                       progress=not args.quiet)
-    print(sweep_markdown(task, args.detector, args.param, points))
-    print(f"wrote {out}/sweep.json, sweep.md and one run folder per value")
+    if len(detectors) == 1:
+        points = run_sweep(task, detectors[0], args.param, args.values, out, workers=args.workers,
+                           progress=not args.quiet)
+        print(sweep_markdown(task, detectors[0], args.param, points))
+        print(f"wrote {out}/sweep.json, sweep.md, sweep.png and one run folder per value")
+        return 0
+    series = run_detector_sweep(task, detectors, args.param, args.values, out, workers=args.workers,
+                                progress=not args.quiet)
+    print(detector_sweep_markdown(task, args.param, series))
+    print(f"wrote {out}/sweep.json, sweep.md, sweep.png and one sweep folder per detector")
     return 0
 
 
@@ -447,8 +455,10 @@ def _add_closed_loop(sub) -> None:
     run.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)",
                         parents=[_parent(_task, _overrides, _workers(1), _quiet)])
-    sw.add_argument("--detector", required=True, help=detector_help)
-    sw.add_argument("--param", required=True, help="setting to sweep, e.g. camera.depth_noise")
+    sw.add_argument("--detector", required=True, nargs="+",
+                    help=detector_help + "; several give one sweep each, side by side (a viewpoint study with a "
+                                         "camera.* setting)")
+    sw.add_argument("--param", required=True, help="setting to sweep, e.g. camera.depth_noise or camera.elevation_deg")
     sw.add_argument("--values", nargs="+", required=True, help="values, e.g. 0 0.5 1 2")
     sw.add_argument("--out", type=Path, help="sweep folder (default runs/sweep_<task>_<detector>_<param>)")
     sw.set_defaults(func=_cmd_sweep)

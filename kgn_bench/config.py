@@ -18,13 +18,15 @@ import tomllib
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.shapes import OBJECTS, PRIMITIVES
 
-__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES", "CameraConfig",
-           "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig", "apply_override", "load_task",
-           "parse_section", "read_toml", "resolve_task"]
+__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES",
+           "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig", "apply_override",
+           "load_task", "parse_section", "read_toml", "resolve_task"]
 
 PROTOCOLS = ("single_object", "multi_object", "pile", "packed")
 CLEARANCE_PROTOCOLS = ("multi_object", "pile", "packed")
 """Protocols whose trial is a round of attempts on several objects (success rate and clear rate)."""
+CLUTTER_PROTOCOLS = ("pile", "packed")
+"""VGN/GIGA's clutter rounds (``sim.placement``): the hard tier."""
 SCORES = ("confidence_minus_error", "paper_literal")
 SELECTOR_MODES = ("assisted", "raw")
 RAW_SELECTOR = {"approach_search": 0.0, "closing_search": 0.0, "centre_range": 0.0, "level_deg": 0.0,

@@ -1,6 +1,7 @@
-"""The CI regression check (README "Regression check"): the fixed-seed clearance task with the shipped kgnv2
-weights and with the oracle; each run's success and clear rates must not fall below results/ci_baseline.json
-(Wilson intervals disjoint and lower, `kgn_bench.bench.check`). A change that breaks grasping fails here."""
+"""The CI regression check (README "Regression check"): the fixed-seed clearance task and the fixed-seed pile task
+in raw (detector-only) mode, each with the shipped kgnv2 weights and with the oracle; each run's success and clear
+rates must not fall below its baseline in results/ (Wilson intervals disjoint and lower,
+`kgn_bench.bench.check`). A change that breaks grasping or the clutter protocol fails here."""
 
 from __future__ import annotations
 
@@ -12,17 +13,18 @@ import pytest
 from kgn_bench.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
-TASK = ROOT / "tasks" / "ci_regression.toml"
-BASELINE = ROOT / "results" / "ci_baseline.json"
+CHECKS = {"ci_regression": ROOT / "results" / "ci_baseline.json", "ci_pile": ROOT / "results" / "ci_baseline_pile.json"}
 
 
+@pytest.mark.parametrize("task", list(CHECKS))
 @pytest.mark.parametrize("detector", ["kgnv2", "oracle"])
-def test_success_and_clear_rates_hold_against_the_baseline(detector, tmp_path, capsys):
+def test_success_and_clear_rates_hold_against_the_baseline(task, detector, tmp_path, capsys):
     out = tmp_path / detector
-    assert main(["run", str(TASK), "--detector", detector, "--workers", "2", "--quiet", "--out", str(out)]) == 0
-    rc = main(["check", str(out), "--baseline", str(BASELINE)])
+    path = ROOT / "tasks" / f"{task}.toml"
+    assert main(["run", str(path), "--detector", detector, "--workers", "2", "--quiet", "--out", str(out)]) == 0
+    rc = main(["check", str(out), "--baseline", str(CHECKS[task])])
     report = capsys.readouterr().out
-    assert rc == 0, f"{detector} regressed on {TASK.name}:\n{report}"
+    assert rc == 0, f"{detector} regressed on {path.name}:\n{report}"
     rates = json.loads((out / "summary.json").read_text())["rates"]
     assert {"success", "clear"} <= set(rates)
     assert "REGRESSION" not in report and "note:" not in report  # same task, seed and trials as the baseline

@@ -75,3 +75,26 @@ def test_a_bad_value_stops_the_sweep_before_any_trial(task, tmp_path):
     with pytest.raises(ConfigError, match="depth_noise must be in"):
         run_sweep(task, "oracle", "camera.depth_noise", ["0", "20"], tmp_path, progress=False)
     assert not any(tmp_path.iterdir())
+
+
+def test_a_viewpoint_study_puts_detectors_side_by_side_with_a_plot(task, tmp_path):
+    import cv2
+
+    from kgn_bench.bench.sweep import run_detector_sweep
+
+    series = run_detector_sweep(task, ["oracle", "random"], "camera.elevation_deg", ["45", "90"], tmp_path,
+                                progress=False)
+    assert list(series) == ["oracle", "random"] and all(len(points) == 2 for points in series.values())
+    for det in series:
+        run = json.loads((tmp_path / det / "camera.elevation_deg=90" / "run.json").read_text())
+        assert run["detector"] == det and run["config"]["camera"]["elevation_deg"] == 90.0
+        assert (tmp_path / det / "sweep.png").is_file()
+    table = (tmp_path / "sweep.md").read_text()
+    assert "| camera.elevation_deg | oracle success | random success |" in table and "\n| 45 | " in table
+    image = cv2.imread(str(tmp_path / "sweep.png"))
+    assert image is not None and image.shape[1] > 300
+    payload = json.loads((tmp_path / "sweep.json").read_text())
+    assert set(payload["detectors"]) == {"oracle", "random"}
+    with pytest.raises(ConfigError, match="elevation_deg must lie in"):
+        run_detector_sweep(task, ["oracle"], "camera.elevation_deg", ["95"], tmp_path / "bad", progress=False)
+    assert not (tmp_path / "bad").exists()

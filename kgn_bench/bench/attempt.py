@@ -26,10 +26,13 @@ from kgn_bench.sim.scene import PhysicsError, Scene
 
 from .selector import Selection
 
-__all__ = ["FAILURE_REASONS", "AttemptResult", "bin_drop_q", "execute_grasp", "held_object"]
+__all__ = ["FAILURE_REASONS", "NOT_EXECUTED", "AttemptResult", "bin_drop_q", "execute_grasp", "held_object"]
 
 FAILURE_REASONS = ("no_candidate", "unreachable", "missed", "dropped_lift", "dropped_transport", "collision",
                    "physics_error", "detector_error")
+NOT_EXECUTED = ("no_candidate", "unreachable")
+"""Outcomes where nothing was executed: the selector passed no candidate (or none the arm reaches). They end
+a pile or packed round and, as in VGN/GIGA, are not grasp attempts there."""
 BIN_DROP_HEIGHT = 0.30
 
 

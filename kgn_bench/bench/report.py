@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from kgn_bench.config import CLUTTER_PROTOCOLS
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.io import atomic_write_text
 
@@ -51,7 +52,7 @@ COLUMNS = (
 )
 """Known columns in display order; runs of other tasks get columns named after the task."""
 
-HARD_PROTOCOLS = ("pile", "packed")
+HARD_PROTOCOLS = CLUTTER_PROTOCOLS
 """Protocols reported in the hard tier."""
 
 GIGA = {"packed": {"GPD": (35.4, 30.7), "VGN": (74.5, 79.2), "GIGA": (83.5, 84.3)},

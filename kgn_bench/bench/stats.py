@@ -13,9 +13,9 @@ from typing import Any
 
 from scipy.stats import binomtest
 
-from kgn_bench.config import CLEARANCE_PROTOCOLS
+from kgn_bench.config import CLEARANCE_PROTOCOLS, CLUTTER_PROTOCOLS
 
-from .attempt import FAILURE_REASONS
+from .attempt import FAILURE_REASONS, NOT_EXECUTED
 from .selector import REJECTIONS
 
 __all__ = ["Rate", "per_object_meaning", "summarise", "summary_markdown", "wilson_interval"]
@@ -67,15 +67,20 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
     """The deterministic summary of a run: rates, failure counts, per-object rates, selector rejections.
 
     Per object type: single-object runs give successes / attempts on that object; multi-object runs give
-    objects of that type put in the bin / placed (the clear rate per type).
+    objects of that type put in the bin / placed (the clear rate per type). In pile and packed runs an
+    attempt that executed nothing (``NOT_EXECUTED``: it ended the round) is not an attempt of the success rate
+    (GSR), as in VGN/GIGA; it still shows in the failure counts.
 
     ``run`` is the run's identity (task, detector, seed, ...), copied in. Records are sorted by index, so
     the summary does not depend on the order trials finished in.
     """
     records = sorted(records, key=lambda r: r["index"])
-    attempts = [a for r in records for a in r["attempts"]]
+    every = [a for r in records for a in r["attempts"]]
+    failures = Counter(a["reason"] for a in every if not a["success"])
+    attempts = every
+    if run.get("protocol") in CLUTTER_PROTOCOLS:  # GSR counts executed grasps only (VGN/GIGA)
+        attempts = [a for a in every if a["reason"] not in NOT_EXECUTED]
     successes = sum(a["success"] for a in attempts)
-    failures = Counter(a["reason"] for a in attempts if not a["success"])
     rejected = Counter()
     for a in attempts:
         rejected.update(a.get("rejected", {}))

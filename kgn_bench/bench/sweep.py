@@ -1,9 +1,12 @@
-"""One task run at several values of one setting (depth-noise strength, the selector's λ, its score form...).
+"""One task run at several values of one setting (depth-noise strength, the selector's λ, the camera...).
 
 Each value gets its own run folder ``OUT/<key>=<value>`` (so every point resumes like any run), and the sweep
-writes ``OUT/sweep.json`` and ``OUT/sweep.md``: per value the success rate (and, for clearance tasks, the clear
-rate) with Wilson 95 % intervals and the most frequent failure reasons. All values see the same scenes: the
-scene of trial i depends only on the task's seed and i.
+writes ``OUT/sweep.json``, ``OUT/sweep.md`` (per value the success rate and, for clearance tasks, the clear
+rate, with Wilson 95 % intervals and the most frequent failure reasons) and ``OUT/sweep.png`` (rate against
+value, the interval shaded). With several detectors (``run_detector_sweep``) each runs its own sweep into
+``OUT/<detector>``, and ``OUT/sweep.{md,json,png}`` put them side by side: a camera sweep
+(``camera.elevation_deg``, ``camera.azimuth_deg``, ``camera.distance``) is a viewpoint study. All values see
+the same scenes: the scene of trial i depends only on the task's seed and i.
 """
 
 from __future__ import annotations
@@ -15,11 +18,12 @@ from typing import Any
 
 from kgn_bench.config import TaskConfig, apply_override
 from kgn_bench.io import atomic_write_text
+from kgn_bench.viz.figures import Line, Panel, line_panels, save_figure
 
 from .runner import run_benchmark
 from .stats import Rate
 
-__all__ = ["SweepPoint", "run_sweep", "sweep_markdown"]
+__all__ = ["SweepPoint", "detector_sweep_markdown", "run_detector_sweep", "run_sweep", "sweep_figure", "sweep_markdown"]
 
 
 @dataclass(frozen=True)
@@ -68,4 +72,58 @@ def run_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out:
                "points": [{"value": p.value, "run": str(p.out), **p.summary} for p in points]}
     atomic_write_text(out / "sweep.json", json.dumps(payload, indent=1) + "\n")
     atomic_write_text(out / "sweep.md", sweep_markdown(task, detector, key, points))
+    save_figure(sweep_figure(task, key, {detector: points}), out / "sweep.png")
     return points
+
+
+def _positions(values: list[str]) -> list[float]:
+    """x of each value on the plot: the number it is, or its index when not every value is a number."""
+    try:
+        return [float(v) for v in values]
+    except ValueError:
+        return [float(i) for i in range(len(values))]
+
+
+def sweep_figure(task: TaskConfig, key: str, series: dict[str, list[SweepPoint]]):
+    """Success (and, for clearance tasks, clear) rate in % against the swept value, one line per detector
+    with its Wilson 95 % interval shaded."""
+    panels = []
+    for rate in ("success", "clear") if task.clearance else ("success",):
+        lines = []
+        for k, (det, points) in enumerate(series.items()):
+            rates = [Rate.from_dict(p.summary["rates"][rate]) for p in points]
+            lines.append(Line(det, _positions([p.value for p in points]), [100 * r.value for r in rates], color=k,
+                              band=([100 * r.interval[0] for r in rates], [100 * r.interval[1] for r in rates])))
+        panels.append(Panel(f"{task.name}: {rate} rate", key, f"{rate} rate (%)", lines))
+    return line_panels(panels, suptitle=f"Sweep of {key} (seed {task.seed}, Wilson 95 % bands)")
+
+
+def run_detector_sweep(task: TaskConfig, detectors: list[str], key: str, values: list[str], out: Path,
+                       workers: int = 1, progress: bool = True) -> dict[str, list[SweepPoint]]:
+    """``run_sweep`` for each detector into ``out/<detector>``, then the side-by-side table, JSON and plot."""
+    if not detectors:
+        raise ValueError("a sweep needs at least one detector")
+    for v in values:
+        apply_override(task, key, v)  # every value checked before the first trial
+    out = Path(out)
+    series = {det: run_sweep(task, det, key, values, out / det, workers, progress) for det in detectors}
+    payload = {"task": task.name, "seed": task.seed, "key": key, "values": values,
+               "detectors": {det: [{"value": p.value, "run": str(p.out), **p.summary} for p in points]
+                             for det, points in series.items()}}
+    atomic_write_text(out / "sweep.json", json.dumps(payload, indent=1) + "\n")
+    atomic_write_text(out / "sweep.md", detector_sweep_markdown(task, key, series))
+    save_figure(sweep_figure(task, key, series), out / "sweep.png")
+    return series
+
+
+def detector_sweep_markdown(task: TaskConfig, key: str, series: dict[str, list[SweepPoint]]) -> str:
+    """One row per value, one column per detector (success; and clear for clearance tasks)."""
+    rates = ("success", "clear") if task.clearance else ("success",)
+    cols = [(det, r) for det in series for r in rates]
+    lines = [f"# Sweep of {key}: {task.name} (seed {task.seed})", "",
+             "Rates in % with Wilson 95 % intervals (k/n).", "",
+             f"| {key} | " + " | ".join(f"{d} {r}" for d, r in cols) + " |", "|---|" + "---|" * len(cols)]
+    values = [p.value for p in next(iter(series.values()))]
+    for i, v in enumerate(values):
+        lines.append(f"| {v} | " + " | ".join(_pct(series[d][i].summary["rates"][r]) for d, r in cols) + " |")
+    return "\n".join(lines) + "\n"

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from kgn_bench.config import TaskConfig
+from kgn_bench.config import CLUTTER_PROTOCOLS, TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.shapes import shape_class
 from kgn_bench.sim.camera import orbit_pose
@@ -40,10 +40,10 @@ from kgn_bench.sim.robot import PARK_Q, add_workcell, on_table
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
 from kgn_bench.sim.view_check import check_view
 
-from .attempt import AttemptResult, execute_grasp
+from .attempt import NOT_EXECUTED, AttemptResult, execute_grasp
 from .selector import DepthView, GraspSelector, Selection
 
-__all__ = ["CAMERA_STREAM", "ROUND_ENDERS", "TIMING_KEYS", "camera_coordinates", "camera_pose", "check_cameras",
+__all__ = ["CAMERA_STREAM", "TIMING_KEYS", "camera_coordinates", "camera_pose", "check_cameras",
            "run_trial", "trial_objects"]
 
 TIMING_KEYS = ("setup", "render", "detect", "select", "simulate")
@@ -53,8 +53,6 @@ RECORD_EVERY = 5
 
 CAMERA_STREAM = 7
 """Third seed word of the camera draw (``camera_pose``)."""
-ROUND_ENDERS = ("no_candidate", "unreachable")
-"""Attempt outcomes that end a pile or packed round: nothing the selector would execute."""
 
 
 def camera_pose(task: TaskConfig, index: int = 0) -> np.ndarray:
@@ -168,7 +166,7 @@ def _fault_record(task: TaskConfig, index: int, reason: str, detail: str, clock:
 
 def _clutter_counts(task: TaskConfig, fell_at_setup: int, fallen: int) -> dict[str, int]:
     """The pile and packed records' extra counts (none for the other protocols, whose records stay as they were)."""
-    if task.protocol not in ("pile", "packed"):
+    if task.protocol not in CLUTTER_PROTOCOLS:
         return {}
     return {"fell_at_setup": fell_at_setup, "fallen": fallen}
 
@@ -262,7 +260,7 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
             consecutive = 0 if attempt["success"] else consecutive + 1
             if attempt["reason"] == "physics_error":
                 break
-            if task.protocol in ("pile", "packed") and attempt["reason"] in ROUND_ENDERS:
+            if task.protocol in CLUTTER_PROTOCOLS and attempt["reason"] in NOT_EXECUTED:
                 break
     return attempts
 

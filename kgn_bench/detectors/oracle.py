@@ -5,7 +5,8 @@ gives. For every object still on the table it returns the evaluation-density fam
 also tilted by ±``TILT_DEG`` about its closing axis (``G · R_z(±α)``: the fingers stay where they pinch,
 the approach leans along the pinched wall or axis, so a ring standing on edge can be taken from above
 at a slant), minus those whose labelling proxy collides or whose palm and wrist would hit anything on the straight
-approach from ``approach`` m back (``sim/collision.py``, exact scene geometry), in the camera frame. Confidence favours
+approach from ``approach`` m back to where the executor closes, ``grasp_depth`` past the grasp origin
+(``sim/collision.py``, exact scene geometry), in the camera frame. Confidence favours
 top-down approaches (the executor's easiest) near the object's centre (the stablest):
 ``c = ½ (1 − x_grasp · ẑ_world) − 2 m⁻¹ · ‖t_grasp − t_object‖``. There is no reprojection error (NaN).
 """
@@ -45,11 +46,14 @@ class OracleDetector:
         """``approach``: how far back the body check sweeps the palm and wrist (default: the pre-grasp
         distance of ``ExecutionConfig``; ``configure`` sets the task's)."""
         self.approach = ExecutionConfig().pregrasp_distance if approach is None else approach
+        self.depth = ExecutionConfig().grasp_depth
         self._scene: Scene | None = None
 
     def configure(self, execution: ExecutionConfig) -> None:
-        """Take the task's execution settings (the pre-grasp distance of the body check)."""
+        """Take the task's execution settings (the pre-grasp distance and the push past the grasp origin of
+        the body check)."""
         self.approach = execution.pregrasp_distance
+        self.depth = execution.grasp_depth
 
     def attach(self, scene: Scene) -> None:
         self._scene = scene
@@ -68,7 +72,9 @@ class OracleDetector:
             T = scene.object_pose(i)
             family = tilted(obj.shape.grasps(EVAL_DENSITY), (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG)))
             grasps = label_collisions(scene, i, family.transformed(T)).free()
-            grasps = grasps.with_collisions(body_collisions(scene, grasps.poses, self.approach)).free()
+            pushed = grasps.poses.copy()  # where the executor closes the jaws
+            pushed[:, :3, 3] += self.depth * grasps.poses[:, :3, 0]
+            grasps = grasps.with_collisions(body_collisions(scene, pushed, self.approach + self.depth)).free()
             sets.append(grasps)
             centres.append(np.repeat(T[None, :3, 3], len(grasps), axis=0))
         if not sets:

@@ -35,6 +35,8 @@ class Line:
     color: int = 0
     dashed: bool = False
     markers: bool = True
+    band: tuple[Sequence[float], Sequence[float]] | None = None
+    """Optional (low, high) per point, drawn as a shaded band (an interval)."""
 
 
 @dataclass(frozen=True)
@@ -99,6 +101,9 @@ def line_panels(panels: Sequence[Panel], *, suptitle: str | None = None) -> Figu
         for line in panel.lines:
             ax.plot(line.x, line.y, color=_tab10(line.color), linestyle="--" if line.dashed else "-",
                     marker="o" if line.markers else None, markersize=2.5, linewidth=1.2, label=line.label)
+            if line.band is not None:
+                ax.fill_between(line.x, line.band[0], line.band[1], color=_tab10(line.color), alpha=0.15,
+                                linewidth=0)
         if panel.log_y:
             ax.set_yscale("log")
         ax.set_title(panel.title, fontsize=9)
