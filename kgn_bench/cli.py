@@ -145,7 +145,7 @@ def _cmd_sweep(args) -> int:
     from kgn_bench.bench.sweep import detector_sweep_markdown, run_detector_sweep, run_sweep, sweep_markdown
     from kgn_bench.config import load_task, validate
 
-    task = load_task(args.task).with_overrides(trials=args.trials, seed=args.seed)
+    task = _apply_settings(load_task(args.task).with_overrides(trials=args.trials, seed=args.seed), args.set)
     validate(task, str(args.task))
     detectors = list(dict.fromkeys(args.detector))
     name = detectors[0] if len(detectors) == 1 else "detectors"
@@ -454,7 +454,7 @@ def _add_closed_loop(sub) -> None:
     run.add_argument("--out", type=Path, help="run folder (default runs/<task>_<detector>_seed<seed>)")
     run.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)",
-                        parents=[_parent(_task, _overrides, _workers(1), _quiet)])
+                        parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _quiet)])
     sw.add_argument("--detector", required=True, nargs="+",
                     help=detector_help + "; several give one sweep each, side by side (a viewpoint study with a "
                                          "camera.* setting)")

@@ -81,7 +81,10 @@ def test_down_frame_is_a_rotation():
         (_pose((0.0, 0.05, 0.02)), 0.06, "collision"),  # a finger lands on the box top (y = 0.005 ... 0.015)
         (_pose((0.25, 0.2, 0.02)), 0.06, "enclosure"),  # empty space above the table
         (_pose((0.0, 0.0, 0.12)), 0.06, "enclosure"),  # above the box: fingertips do not reach it
-        (_pose((0.25, -0.2, -0.03)), 0.06, "collision"),  # under the table top
+        (_pose((0.25, -0.2, -0.015)), 0.06, "collision"),  # under the table top
+        (_pose((0.25, -0.2, -0.03)), 0.06, "workspace"),  # further under it: not over the table
+        (_pose((-0.6, 0.0, 0.1)), 0.06, "workspace"),  # beyond the table's edge (the pedestal, the parked arm)
+        (_pose((0.0, 0.0, 0.45)), 0.06, "workspace"),  # high above it
         (_pose((*FAR, 0.02)), 0.06, "ik"),  # a fine grasp the arm cannot reach
     ],
 )
@@ -124,7 +127,7 @@ def test_rejections_accumulate_until_a_feasible_candidate(points, ik):
         _pose((0.0, 0.0, 0.02)),  # width
         _pose((0.0, 0.0, 0.02)),  # collision
         _pose((0.25, 0.2, 0.02)),  # enclosure
-        _pose((0.0, 0.0, -0.03)),  # collision (table)
+        _pose((0.0, 0.0, -0.015)),  # collision (table)
         _pose((*FAR, 0.02)),  # ik
         _pose((0.0, 0.0, 0.02), np.pi / 2),  # good
         _pose((0.0, 0.0, 0.02)),  # good too, but ranked last
@@ -132,7 +135,8 @@ def test_rejections_accumulate_until_a_feasible_candidate(points, ik):
     widths = [0.3, 0.02, 0.06, 0.06, 0.06, 0.06, 0.06]
     sel = _select(poses, widths, points, ik)
     assert sel.index == 5
-    assert sel.rejected == {"repeat": 0, "width": 1, "collision": 2, "occluded": 0, "enclosure": 1, "ik": 1}
+    assert sel.rejected == {"workspace": 0, "repeat": 0, "width": 1, "collision": 2, "occluded": 0, "enclosure": 1,
+                            "ik": 1}
     np.testing.assert_allclose(np.abs(sel.grasp[:3, 2]), [1.0, 0.0, 0.0], atol=1e-12)
     # max_candidates cuts the list: the good ones are never looked at
     cut = _select(poses, widths, points, ik, cfg=replace(CFG, max_candidates=5))

@@ -90,7 +90,8 @@ def test_summarise_single_object():
     assert s["per_object"]["cuboid"] == Rate(1, 2).to_dict()
     assert s["per_object"]["sphere"] == Rate(2, 2).to_dict()
     assert s["per_object"]["ring"] == Rate(0, 1).to_dict()
-    assert s["selector_rejections"] == {"repeat": 0, "width": 2, "collision": 5, "occluded": 0, "enclosure": 5, "ik": 3}
+    assert s["selector_rejections"] == {"workspace": 0, "repeat": 0, "width": 2, "collision": 5, "occluded": 0,
+                                        "enclosure": 5, "ik": 3}
     assert list(s["selector_rejections"]) == list(REJECTIONS)
     json.dumps(s)  # plain JSON data
 

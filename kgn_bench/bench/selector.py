@@ -19,8 +19,12 @@ counted:
    equator slips on the lift), unless the table stops the fingertips first (a flat object is as deep as it is);
 5. ``ik``: IK reaches the pre-grasp and then the grasp within joint limits.
 
-Before these, ``repeat``: a candidate within ``retry_distance`` and ``retry_angle_deg`` (either symmetric
-form) of a grasp that already failed in this trial (``failed``: world poses, both as executed and as the
+Before these, ``workspace``: a candidate whose grasp origin is not in the workspace over the table
+(``|x|, |y| ≤ sim.robot.WORKSPACE_HALF``, ``−2 cm ≤ z ≤ WORKSPACE_TOP``) is not a grasp of anything the task is
+about, whatever it encloses: the parked arm, its base and the place bin are in the image from some viewpoints,
+and a grasp on them is executed after the arm has left (every real system bounds its workspace the same way).
+Then ``repeat``: a candidate within ``retry_distance`` and ``retry_angle_deg`` (either symmetric form) of a
+grasp that already failed in this trial (``failed``: world poses, both as executed and as the
 candidate that was chosen, ``Selection.tried``) is skipped: a deterministic detector would otherwise retry
 the same failing grasp until the consecutive failure limit ends the scene. (The executed pose alone is not
 enough: the search below may have moved it by more than ``retry_distance`` from the candidate.)
@@ -66,13 +70,14 @@ from kgn_bench.config import ExecutionConfig, SelectorConfig
 from kgn_bench.grasp import flip_180, grasp_rotation_error
 from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.sim.control import IK
-from kgn_bench.sim.robot import READY_Q
+from kgn_bench.sim.robot import READY_Q, WORKSPACE_HALF
 
-__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "DepthView", "GraspSelector", "Selection", "centre_offset", "level_poses",
-           "near_failed",
-           "score_candidates", "search_offsets", "select_grasp", "valid_candidates"]
+__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "WORKSPACE_TOP", "DepthView", "GraspSelector", "Selection", "centre_offset",
+           "level_poses", "near_failed", "score_candidates", "search_offsets", "select_grasp", "valid_candidates"]
 
-REJECTIONS = ("repeat", "width", "collision", "occluded", "enclosure", "ik")
+REJECTIONS = ("workspace", "repeat", "width", "collision", "occluded", "enclosure", "ik")
+WORKSPACE_TOP = 0.4
+"""Highest grasp origin (m above the table top) the selector accepts."""
 CENTRE_VIEW_DEG = 45.0
 """Centring applies when the closing axis is at most this far from perpendicular to the camera ray."""
 
@@ -358,7 +363,13 @@ class GraspSelector:
         order = order[valid[order]][: cfg.max_candidates]
         repeat = near_failed(poses, np.zeros((0, 4, 4)) if failed is None else failed, cfg.retry_distance,
                              np.deg2rad(cfg.retry_angle_deg))
+        t = poses[:, :3, 3]
+        over_table = np.all(np.abs(t[:, :2]) <= WORKSPACE_HALF, axis=1) & (t[:, 2] >= -0.02)
+        over_table &= t[:, 2] <= WORKSPACE_TOP
         for k in order:
+            if not over_table[k]:
+                sel.rejected["workspace"] += 1
+                continue
             if repeat[k]:
                 sel.rejected["repeat"] += 1
                 continue

@@ -36,6 +36,7 @@ __all__ = [
     "BIN",
     "PARK_Q",
     "READY_Q",
+    "WORKSPACE_HALF",
     "PlaceBin",
     "RobotIndex",
     "add_workcell",
@@ -51,6 +52,10 @@ ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 FINGER_JOINTS = ("left_finger", "right_finger")
 BASE_POSITION = np.array([-0.55, 0.0, 0.0])
 """Arm base in the world frame: just behind the table's −x edge, at table-top height."""
+
+WORKSPACE_HALF = 0.40
+"""Half side (m) of the square over the table centre where grasps are taken: objects are placed within ±0.3 m;
+the arm's base (x = −0.55), its first links and the place bin lie outside it."""
 
 READY_Q = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.785])
 """Above the workspace, gripper pointing down: the seed of every IK solve."""
