@@ -59,3 +59,11 @@ def test_task_cameras_are_checked_per_trial_and_named():
         check_cameras(_task(elevation_deg="30,90", azimuth_deg="60,120"))
     ranged = _task(elevation_deg="45,90", azimuth_deg="-60,60", distance="0.6,1.0")
     assert check_cameras(ranged) == ranged.n_trials
+
+
+def test_a_run_with_a_blocked_camera_is_refused_before_anything_is_written(tmp_path):
+    from kgn_bench.bench.runner import run_benchmark
+
+    with pytest.raises(ViewError, match="the arm blocks the view"):
+        run_benchmark(_task(elevation_deg="35"), "oracle", tmp_path / "run", progress=False)
+    assert not (tmp_path / "run").exists()
