@@ -10,7 +10,7 @@ export MUJOCO_GL ?= egl
 $(BIN)/kgn-bench: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --upgrade pip
-	$(BIN)/pip install -c constraints.txt -e '.[test]'
+	$(BIN)/pip install -c constraints.txt -e '.[test,ray]'
 	touch $@
 
 setup: $(BIN)/kgn-bench
@@ -50,7 +50,7 @@ lock:
 	rm -rf .lock-venv
 	$(PYTHON) -m venv .lock-venv
 	.lock-venv/bin/pip install --upgrade pip
-	.lock-venv/bin/pip install 'torch==2.13.0' -e '.[test]'
+	.lock-venv/bin/pip install 'torch==2.13.0' -e '.[test,ray]'
 	{ sed -n '/^#/p' constraints.txt; .lock-venv/bin/pip freeze --exclude-editable | grep -v '^#' \
 	  | sed 's/^torch==2.13.0+cpu$$/torch==2.13.0/'; } > constraints.txt.new
 	mv constraints.txt.new constraints.txt

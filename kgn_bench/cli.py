@@ -43,10 +43,20 @@ def _warn(message: str) -> None:
     sys.stderr.write(f"kgn-bench: warning: {message}\n")
 
 
-def _check_workers(workers: int) -> None:
-    """Warn when more worker processes are asked for than there are cores (they would only queue)."""
+def _backend(args):
+    """The ``pool.Backend`` of ``--backend``, ``--address`` and ``--num-gpus``."""
+    from kgn_bench.pool import Backend
+
+    return Backend(args.backend, address=args.address, num_gpus=args.num_gpus)
+
+
+def _check_workers(workers: int, backend: str = "local") -> None:
+    """Warn when more worker processes are asked for than there are cores (they would only queue); on Ray,
+    ``--workers`` is the number of jobs in flight on the cluster, whose cores are not this machine's."""
     from kgn_bench.threads import available_cores
 
+    if backend != "local":
+        return
     cores = available_cores()
     if workers > cores:
         _warn(f"--workers {workers} is more than the {cores} core(s) of this machine; trials will queue "
@@ -73,12 +83,13 @@ def _cmd_data_generate(args) -> int:
     from kgn_bench.data.generate import GenerateConfig, generate_dataset
     from kgn_bench.sim.scene import PhysicsError
 
-    _check_workers(args.workers)
+    backend = _backend(args)
+    _check_workers(args.workers, args.backend)
     _writable(args.out)
     config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed)
     try:
         stats = generate_dataset(config, args.out, workers=args.workers, overwrite=args.overwrite,
-                                 progress=not args.quiet)
+                                 progress=not args.quiet, backend=backend)
     except PhysicsError as e:
         return _fail(f"{e}; finished scenes are kept, rerun the same command to resume")
     done = config.scenes - stats.scenes
@@ -128,15 +139,17 @@ def _cmd_run(args) -> int:
     validate(task, str(args.task))
     task = _apply_settings(task, args.set)
     out = args.out or Path("runs") / f"{task.name}_{args.detector.replace(':', '.')}_seed{task.seed}"
-    _check_workers(args.workers)
+    backend = _backend(args)
+    _check_workers(args.workers, args.backend)
     _writable(out, "run folder")
     result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
-                           progress=not args.quiet)
+                           progress=not args.quiet, backend=backend)
     print(summary_markdown(result.summary))
     t = result.timing
     if result.ran:
         rate = t["trials_per_minute"]
-        print(f"{result.ran} trials in {t['wall_s']:.1f} s ({rate} trials/min, {args.workers} workers)")
+        where = "workers" if args.backend == "local" else "in flight on Ray"
+        print(f"{result.ran} trials in {t['wall_s']:.1f} s ({rate} trials/min, {args.workers} {where})")
     print(f"wrote {out}/summary.json, summary.md" + (", recording.rrd" if args.record else ""))
     return 0
 
@@ -150,16 +163,17 @@ def _cmd_sweep(args) -> int:
     detectors = list(dict.fromkeys(args.detector))
     name = detectors[0] if len(detectors) == 1 else "detectors"
     out = args.out or Path("runs") / f"sweep_{task.name}_{name}_{args.param}"
-    _check_workers(args.workers)
+    backend = _backend(args)
+    _check_workers(args.workers, args.backend)
     _writable(out, "sweep folder")
     if len(detectors) == 1:
         points = run_sweep(task, detectors[0], args.param, args.values, out, workers=args.workers,
-                           progress=not args.quiet)
+                           progress=not args.quiet, backend=backend)
         print(sweep_markdown(task, detectors[0], args.param, points))
         print(f"wrote {out}/sweep.json, sweep.md, sweep.png and one run folder per value")
         return 0
     series = run_detector_sweep(task, detectors, args.param, args.values, out, workers=args.workers,
-                                progress=not args.quiet)
+                                progress=not args.quiet, backend=backend)
     print(detector_sweep_markdown(task, args.param, series))
     print(f"wrote {out}/sweep.json, sweep.md, sweep.png and one sweep folder per detector")
     return 0
@@ -198,10 +212,11 @@ def _cmd_benchmark(args) -> int:
 
     plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
     plan = replace(plan, tasks=tuple(_apply_settings(t, args.set) for t in plan.tasks))
-    _check_workers(args.workers)
+    backend = _backend(args)
+    _check_workers(args.workers, args.backend)
     _writable(args.runs, "runs folder")
     _writable(args.out, "report folder")
-    folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet)
+    folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet, backend=backend)
     summaries = load_summaries(folders)
     text, _ = build_report(summaries, args.out or args.runs)
     _print_report(text, environment_warnings(summaries), args.out or args.runs)
@@ -367,6 +382,17 @@ def _workers(default: int):
     return add
 
 
+def _cluster(p):
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="where jobs run: this machine's worker processes (default) or a Ray cluster "
+                        "(pip install 'kgn-bench[ray]'; docs/cluster.md)")
+    p.add_argument("--address", help="with --backend ray: the cluster to join, e.g. 10.0.0.1:6379 (default "
+                                     "RAY_ADDRESS, else a local Ray on this machine's cores)")
+    p.add_argument("--num-gpus", type=float, default=0.0,
+                   help="with --backend ray: GPUs per job, e.g. 0.25 for four trials of a GPU detector per GPU "
+                        "(default 0: CPU only)")
+
+
 def _quiet(p):
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -405,7 +431,7 @@ def _add_data(sub) -> None:
     data = sub.add_parser("data", help="the Primitive Shape dataset")
     dsub = data.add_subparsers(dest="data_command", required=True, parser_class=_Parser)
     gen = dsub.add_parser("generate", help="generate a PS dataset (resumes an interrupted run)",
-                          parents=[_parent(_workers(1), _quiet)])
+                          parents=[_parent(_workers(1), _cluster, _quiet)])
     gen.add_argument("--mode", choices=("single", "multi"), required=True,
                      help="single: one random shape per scene; multi: one of each of the six shapes")
     gen.add_argument("--scenes", type=_int_at_least(1), default=1000, help="number of scenes (default 1000)")
@@ -448,13 +474,13 @@ def _add_perf(sub) -> None:
 def _add_closed_loop(sub) -> None:
     detector_help = "kgnv2, kgn, kgn_depth, antipodal, random, oracle, ... or module:attribute for your own"
     run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)",
-                         parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _quiet)])
+                         parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _cluster, _quiet)])
     run.add_argument("--detector", required=True, help=detector_help)
     run.add_argument("--record", action="store_true", help="write a rerun recording (recording.rrd)")
     run.add_argument("--out", type=Path, help="run folder (default runs/<task>_<detector>_seed<seed>)")
     run.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)",
-                        parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _quiet)])
+                        parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _cluster, _quiet)])
     sw.add_argument("--detector", required=True, nargs="+",
                     help=detector_help + "; several give one sweep each, side by side (a viewpoint study with a "
                                          "camera.* setting)")
@@ -463,7 +489,7 @@ def _add_closed_loop(sub) -> None:
     sw.add_argument("--out", type=Path, help="sweep folder (default runs/sweep_<task>_<detector>_<param>)")
     sw.set_defaults(func=_cmd_sweep)
     bm = sub.add_parser("benchmark", help="run every task x detector of a plan, then write the report",
-                        parents=[_parent(_workers(2), _settings("every task"), _quiet)])
+                        parents=[_parent(_workers(2), _settings("every task"), _cluster, _quiet)])
     bm.add_argument("plan", type=Path, nargs="?", default=Path("benchmark"),
                     help="plan file, or a bundled plan's name (default: the bundled benchmark plan)")
     bm.add_argument("--tasks", nargs="+", help="only these tasks of the plan")

@@ -4,6 +4,10 @@ Callers keep their own record of finished work on disk (``trials.jsonl``, whole 
 only the jobs still to do, so a rerun resumes. Jobs run in this process when ``workers`` is 1 (or one job is
 left), else in ``spawn``ed worker processes, each set up once by ``initializer``; results come back as they
 finish and ``on_result`` stores each at once, so a kill loses only the jobs in flight.
+
+``backend`` says where the jobs run: ``Backend()`` (the default) is this machine's pool above;
+``Backend("ray", address)`` hands them to ``kgn_bench.cluster`` (one Ray task per job, results streamed back to
+this process, which stores them exactly as with the local pool). Ray is imported only then.
 """
 
 from __future__ import annotations
@@ -12,12 +16,15 @@ from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import AbstractContextManager, nullcontext
+from dataclasses import dataclass
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
 from kgn_bench.errors import KGNBenchError
 
-__all__ = ["PoolError", "run_jobs"]
+__all__ = ["BACKENDS", "LOCAL", "Backend", "PoolError", "run_jobs"]
+
+BACKENDS = ("local", "ray")
 
 J = TypeVar("J")
 R = TypeVar("R")
@@ -27,17 +34,57 @@ class PoolError(KGNBenchError, RuntimeError):
     """A worker process died (killed, out of memory, a crash in native code) while jobs were running."""
 
 
+@dataclass(frozen=True)
+class Backend:
+    """Where jobs run. ``local``: this process or its spawned workers. ``ray``: a Ray cluster at ``address``
+    (None: ``RAY_ADDRESS``, else a local Ray on this machine's cores), each job a task holding ``num_cpus``
+    CPUs and ``num_gpus`` GPUs (a fraction shares one: 0.25 puts four jobs on a GPU)."""
+
+    kind: str = "local"
+    address: str | None = None
+    num_cpus: float = 1.0
+    num_gpus: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {self.kind!r}")
+        if self.kind == "local" and (self.address or self.num_gpus):
+            raise ValueError("--address and --num-gpus need --backend ray")
+        if self.num_cpus <= 0 or self.num_gpus < 0:
+            raise ValueError("num_cpus must be > 0 and num_gpus ≥ 0")
+
+    def prepare(self, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = ()) -> None:
+        """Check, before anything is written, that the jobs can run there: for Ray, join the cluster and set
+        one worker up with ``initializer(*initargs)`` (``cluster.ClusterError`` in one line if not)."""
+        if self.kind == "ray":
+            from kgn_bench.cluster import connect
+
+            connect(self.address, initializer, initargs, self.num_cpus, self.num_gpus)
+
+
+LOCAL = Backend()
+
+
 def run_jobs(jobs: Sequence[J], work: Callable[[J], R], on_result: Callable[[R], Any], *, workers: int = 1,
              initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
-             local: Callable[[], AbstractContextManager[Any]] = nullcontext, what: str = "jobs") -> None:
+             local: Callable[[], AbstractContextManager[Any]] = nullcontext, what: str = "jobs",
+             backend: Backend = LOCAL) -> None:
     """Run ``work(job)`` for every job and pass each result to ``on_result`` (in completion order).
 
     ``local`` is entered around the in-process path (e.g. the trial thread settings); ``initializer``
     prepares each worker process. An exception from ``work`` stops the pool (pending jobs are cancelled)
-    and is raised here; a worker that dies raises ``PoolError`` naming ``what``.
+    and is raised here; a worker that dies raises ``PoolError`` naming ``what``. On ``backend`` ray,
+    ``workers`` is the number of jobs in flight on the cluster (``cluster.run_ray_jobs``).
     """
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
+    if backend.kind == "ray":
+        from kgn_bench.cluster import run_ray_jobs
+
+        if jobs:
+            run_ray_jobs(jobs, work, on_result, address=backend.address, workers=workers, initializer=initializer,
+                         initargs=initargs, num_cpus=backend.num_cpus, num_gpus=backend.num_gpus, what=what)
+        return
     if workers == 1 or len(jobs) <= 1:
         with local():
             for job in jobs:

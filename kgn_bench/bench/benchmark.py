@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from kgn_bench.config import SELECTOR_MODES, ConfigError, TaskConfig, apply_override, load_task, read_toml, resolve_task
+from kgn_bench.pool import LOCAL, Backend
 
 from .runner import run_benchmark
 
@@ -75,12 +76,14 @@ def _plan_task(plan: Path, entry: str) -> TaskConfig:
     return replace(apply_override(task, "selector.mode", mode), name=f"{task.name}_{mode}")
 
 
-def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True) -> list[Path]:
-    """Run every (task, detector) of ``plan`` into ``runs``/task/detector; returns the run folders."""
+def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True,
+             backend: Backend = LOCAL) -> list[Path]:
+    """Run every (task, detector) of ``plan`` into ``runs``/task/detector (on ``backend``); returns the run
+    folders."""
     folders = []
     for task in plan.tasks:
         for det in plan.detectors:
             folder = Path(runs) / task.name / det
-            run_benchmark(task, det, folder, workers=workers, progress=progress)
+            run_benchmark(task, det, folder, workers=workers, progress=progress, backend=backend)
             folders.append(folder)
     return folders

@@ -12,6 +12,10 @@ of ``kgn_bench.threads``); ``timing.json`` holds the wall-clock figures of the l
 Before anything is written, the detector is built once in the calling process, so that an unknown name, a
 constructor that raises or weights that do not load stop the run with one line. While a run writes to a
 folder it holds an exclusive lock on ``.lock`` there; a second run into the same folder is refused.
+
+With ``backend`` ray (``pool.Backend``) the trials run as Ray tasks, on a cluster or a local Ray; the cluster is
+joined and one of its workers builds the detector before anything is written, and the records come back to
+this process, which writes the same files: a run may start on one backend and resume on the other.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ from kgn_bench.config import CLEARANCE_PROTOCOLS, TaskConfig
 from kgn_bench.environment import environment
 from kgn_bench.errors import KGNBenchError, OutputError
 from kgn_bench.io import atomic_write_text, describe_os_error
-from kgn_bench.pool import run_jobs
+from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.threads import pin_worker_threads, trial_threads
 
@@ -211,21 +215,24 @@ def _running_rates(records: list[dict[str, Any]]) -> str:
 
 
 def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, record: bool = False,
-                  progress: bool = True) -> RunResult:
+                  progress: bool = True, backend: Backend = LOCAL) -> RunResult:
     """Run (or finish) ``task`` with ``detector`` into ``out``; writes the summaries; returns them."""
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
+    if record and backend.kind != "local":
+        raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
     instance = build_detector(detector)  # fails here, in one line, before anything is written
     check_cameras(task)  # and so does a camera that cannot see the workspace
+    backend.prepare(_worker_init, (detector,))  # and so does a cluster that cannot run the trials
     out = Path(out)
     identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
     with run_lock(out):
         _prepare(out, identity)
-        return _run_locked(task, detector, instance, out, identity, workers, record, progress)
+        return _run_locked(task, detector, instance, out, identity, workers, record, progress, backend)
 
 
 def _run_locked(task: TaskConfig, detector: str, instance: Any, out: Path, identity: dict[str, Any], workers: int,
-                record: bool, progress: bool) -> RunResult:
+                record: bool, progress: bool, backend: Backend) -> RunResult:
     trials_path = out / "trials.jsonl"
     records = read_trials(trials_path)
     done = {r["index"] for r in records}
@@ -257,7 +264,8 @@ def _run_locked(task: TaskConfig, detector: str, instance: Any, out: Path, ident
 
     _worker_setup(detector, instance)  # the in-process path uses the detector built above
     run_jobs(jobs, _run_one, finished, workers=workers, initializer=_worker_init, initargs=(detector,),
-             local=trial_threads, what=f"{task.name} with {detector} ({len(records)} of {task.n_trials} trials done)")
+             local=trial_threads, what=f"{task.name} with {detector} ({len(records)} of {task.n_trials} trials done)",
+             backend=backend)
     wall = time.perf_counter() - start
     run_meta = {k: identity[k] for k in ("task", "protocol", "detector", "seed")}
     summary = summarise(records, run_meta)

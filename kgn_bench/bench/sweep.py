@@ -18,6 +18,7 @@ from typing import Any
 
 from kgn_bench.config import TaskConfig, apply_override
 from kgn_bench.io import atomic_write_text
+from kgn_bench.pool import LOCAL, Backend
 from kgn_bench.viz.figures import Line, Panel, line_panels, save_figure
 
 from .runner import run_benchmark
@@ -55,7 +56,7 @@ def sweep_markdown(task: TaskConfig, detector: str, key: str, points: list[Sweep
 
 
 def run_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out: Path, workers: int = 1,
-              progress: bool = True) -> list[SweepPoint]:
+              progress: bool = True, backend: Backend = LOCAL) -> list[SweepPoint]:
     """Run ``task`` with ``detector`` once per value of setting ``key`` (``config.apply_override``); all
     values are validated before the first trial runs."""
     if not values:
@@ -65,7 +66,7 @@ def run_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out:
     points = []
     for value, t in zip(values, tasks):
         folder = out / f"{key}={value}"
-        result = run_benchmark(t, detector, folder, workers=workers, progress=progress)
+        result = run_benchmark(t, detector, folder, workers=workers, progress=progress, backend=backend)
         points.append(SweepPoint(value, folder, result.summary))
     out.mkdir(parents=True, exist_ok=True)
     payload = {"task": task.name, "detector": detector, "seed": task.seed, "key": key,
@@ -99,14 +100,15 @@ def sweep_figure(task: TaskConfig, key: str, series: dict[str, list[SweepPoint]]
 
 
 def run_detector_sweep(task: TaskConfig, detectors: list[str], key: str, values: list[str], out: Path,
-                       workers: int = 1, progress: bool = True) -> dict[str, list[SweepPoint]]:
+                       workers: int = 1, progress: bool = True, backend: Backend = LOCAL
+                       ) -> dict[str, list[SweepPoint]]:
     """``run_sweep`` for each detector into ``out/<detector>``, then the side-by-side table, JSON and plot."""
     if not detectors:
         raise ValueError("a sweep needs at least one detector")
     for v in values:
         apply_override(task, key, v)  # every value checked before the first trial
     out = Path(out)
-    series = {det: run_sweep(task, det, key, values, out / det, workers, progress) for det in detectors}
+    series = {det: run_sweep(task, det, key, values, out / det, workers, progress, backend) for det in detectors}
     payload = {"task": task.name, "seed": task.seed, "key": key, "values": values,
                "detectors": {det: [{"value": p.value, "run": str(p.out), **p.summary} for p in points]
                              for det, points in series.items()}}

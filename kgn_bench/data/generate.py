@@ -1,8 +1,11 @@
 """The Primitive Shape (PS) dataset generator: scenes, settling, grasp labels, renders, files.
 
 Every random draw of scene ``i`` comes from ``numpy.random.default_rng([seed, mode_id, i])``, so any
-scene can be regenerated alone and the files are identical whatever the number of workers. A scene
-whose physics fails (an object leaves the table, the state diverges) is redrawn from the same stream.
+scene can be regenerated alone and the files are identical whatever the number of workers or the backend
+(``pool.Backend``: this machine's pool or a Ray cluster). A worker returns a scene's files as bytes
+(``scene_files``) and the calling process writes them (``write_scene_files``), so a cluster's workers need no
+access to the output folder. A scene whose physics fails (an object leaves the table, the state diverges) is
+redrawn from the same stream.
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +30,7 @@ from kgn_bench.data.format import (
 )
 from kgn_bench.grasp import GraspSet
 from kgn_bench.io import atomic_write_text
-from kgn_bench.pool import run_jobs
+from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_class, shape_from_dims
 from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics
@@ -44,7 +48,9 @@ __all__ = [
     "generate_dataset",
     "generate_scene",
     "relabel_grasps",
+    "scene_files",
     "scene_from_annotation",
+    "write_scene_files",
 ]
 
 MODES = ("single", "multi")
@@ -154,18 +160,32 @@ def generate_scene(config: GenerateConfig, index: int) -> GeneratedScene:
 def write_scene(root: Path, generated: GeneratedScene) -> float:
     """Write a scene folder atomically (temporary folder, then rename); returns the seconds spent."""
     t0 = time.perf_counter()
-    final = scene_dir(root, generated.annotation.index)
+    write_scene_files(root, generated.annotation.index, scene_files(generated))
+    return time.perf_counter() - t0
+
+
+def scene_files(generated: GeneratedScene) -> dict[str, bytes]:
+    """The files of a scene folder (name → content): the encoded views and ``scene.json``."""
+    with tempfile.TemporaryDirectory(prefix="kgn-scene-") as tmp:
+        for v, rgbd in enumerate(generated.views):
+            write_view(Path(tmp), v, rgbd)
+        files = {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir())}
+    files["scene.json"] = json.dumps(generated.annotation.to_json()).encode()
+    return files
+
+
+def write_scene_files(root: Path, index: int, files: dict[str, bytes]) -> None:
+    """Write scene ``index``'s folder atomically (temporary folder, then rename)."""
+    final = scene_dir(root, index)
     tmp = final.parent / f".tmp-{final.name}-{os.getpid()}"
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir(parents=True)
-    for v, rgbd in enumerate(generated.views):
-        write_view(tmp, v, rgbd)
-    (tmp / "scene.json").write_text(json.dumps(generated.annotation.to_json()))
+    for name, data in files.items():
+        (tmp / name).write_bytes(data)
     if final.exists():
         shutil.rmtree(final)
     os.replace(tmp, final)
-    return time.perf_counter() - t0
 
 
 def scene_from_annotation(annotation: SceneAnnotation) -> Scene:
@@ -198,12 +218,13 @@ class GenerationStats:
         return self.views / self.wall if self.wall > 0 else float("nan")
 
 
-def _generate_and_write(args: tuple[GenerateConfig, int, str]) -> dict[str, float]:
-    config, index, root = args
+def _generate_files(args: tuple[GenerateConfig, int]) -> tuple[int, dict[str, bytes], dict[str, float]]:
+    """A worker's job: scene ``index`` generated and encoded; the caller writes the files."""
+    config, index = args
     generated = generate_scene(config, index)
-    timings = dict(generated.timings)
-    timings["write"] = write_scene(Path(root), generated)
-    return timings
+    t0 = time.perf_counter()
+    files = scene_files(generated)
+    return index, files, {**generated.timings, "write": time.perf_counter() - t0}
 
 
 def _worker_init() -> None:
@@ -250,24 +271,30 @@ def prepare_output(config: GenerateConfig, root: Path, overwrite: bool) -> list[
 
 
 def generate_dataset(config: GenerateConfig, root: Path, workers: int = 1, overwrite: bool = False,
-                     progress: bool = True) -> GenerationStats:
-    """Generate (or finish) the dataset in ``root`` with ``workers`` processes; writes the split last."""
+                     progress: bool = True, backend: Backend = LOCAL) -> GenerationStats:
+    """Generate (or finish) the dataset in ``root`` with ``workers`` processes (or, on a Ray ``backend``,
+    ``workers`` scenes in flight); writes the split last."""
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
     root = Path(root)
+    backend.prepare(_worker_init)  # a cluster that cannot run the scenes fails here, before anything is written
     todo = prepare_output(config, root, overwrite)
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
     bar = Progress(len(todo), f"data generate {config.mode}", unit="scenes", enabled=progress)
     start = time.perf_counter()
-    jobs = [(config, i, str(root)) for i in todo]
+    jobs = [(config, i) for i in todo]
 
-    def finished(timings: dict[str, float]) -> None:
+    def finished(result: tuple[int, dict[str, bytes], dict[str, float]]) -> None:
+        index, files, timings = result
+        t0 = time.perf_counter()
+        write_scene_files(root, index, files)
+        timings = {**timings, "write": timings["write"] + time.perf_counter() - t0}
         for k, v in timings.items():
             totals[k] += v
         bar.update()
 
-    run_jobs(jobs, _generate_and_write, finished, workers=workers, initializer=_worker_init,
-             what=f"data generation into {root}")
+    run_jobs(jobs, _generate_files, finished, workers=workers, initializer=_worker_init,
+             what=f"data generation into {root}", backend=backend)
     wall = time.perf_counter() - start
     train, test = config.split()
     atomic_write_text(root / "train.txt", "".join(f"{i}\n" for i in train))

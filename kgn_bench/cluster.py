@@ -1,0 +1,206 @@
+"""The Ray backend of ``pool.run_jobs``: the same jobs, one Ray task each, on a cluster or on a local Ray.
+
+Only ``pool.run_jobs`` calls it, and only for ``--backend ray``: nothing else imports this module, and this
+module imports ``ray`` only inside its functions, so the package works without the ``ray`` extra.
+
+Each job is one Ray task (``num_cpus`` / ``num_gpus`` from the ``Backend``). The task's environment sets the
+trial thread counts and ``MUJOCO_GL`` (``WORKER_ENV``, through the task's ``runtime_env``), and a worker
+process runs ``initializer(*initargs)`` once, lazily, before its first job (the per-process state the local
+pool builds in its ``spawn``ed workers: a module-level cache keyed by the initializer and its arguments).
+Results come back to the driver as they finish and go to ``on_result`` there, so the driver writes the same
+files as the local pool. A worker that dies mid-job (killed, out of memory) has its job rerun on another
+worker, up to ``MAX_RETRIES`` times; a job is a pure function of its arguments, so the rerun gives the same
+result. Before any job runs, ``connect`` joins the cluster (or starts a local Ray) and runs the initializer
+once on a worker: a cluster that cannot be reached, or whose workers lack the package, its assets or the
+detector's weights, is one ``ClusterError`` line before the caller writes anything.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, TypeVar
+
+from kgn_bench.errors import KGNBenchError
+from kgn_bench.threads import TRIAL_THREADS, available_cores
+
+__all__ = ["MAX_RETRIES", "WORKER_ENV", "ClusterError", "connect", "run_ray_jobs", "shutdown"]
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+MAX_RETRIES = 3
+"""Reruns of a job whose worker died (Ray's ``max_retries``); an exception raised by the job is not retried."""
+
+_THREADS = str(TRIAL_THREADS)
+WORKER_ENV = {
+    "OMP_NUM_THREADS": _THREADS, "MKL_NUM_THREADS": _THREADS, "OPENBLAS_NUM_THREADS": _THREADS,
+    "NUMEXPR_NUM_THREADS": _THREADS, "LP_NUM_THREADS": _THREADS,
+}
+"""Environment of every Ray worker (plus ``MUJOCO_GL`` and ``PYOPENGL_PLATFORM`` of the driver): one thread per
+library from the process start, as ``threads.pin_worker_threads`` sets it in a local pool worker."""
+
+INSTALL_HINT = "pip install 'kgn-bench[ray]'"
+
+
+class ClusterError(KGNBenchError, RuntimeError):
+    """A Ray cluster that cannot be used: Ray not installed, an address that cannot be reached, workers that
+    lack the package or its assets, or a worker that died more often than ``MAX_RETRIES``."""
+
+
+def worker_env() -> dict[str, str]:
+    """``WORKER_ENV`` with this process's ``MUJOCO_GL`` (default ``egl``) and ``PYOPENGL_PLATFORM``."""
+    gl = os.environ.get("MUJOCO_GL", "egl")
+    return {**WORKER_ENV, "MUJOCO_GL": gl, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", gl)}
+
+
+def _ray():
+    try:
+        import ray
+    except ImportError:
+        raise ClusterError(f"--backend ray needs Ray: {INSTALL_HINT}") from None
+    return ray
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return f"{type(e).__name__}: {text.splitlines()[0]}" if text else type(e).__name__
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """A ``host:port`` address must accept a TCP connection (Ray itself would retry for a minute or more)."""
+    host, sep, port = address.rpartition(":")
+    if address.startswith("ray://"):
+        host, sep, port = address[len("ray://"):].rpartition(":")
+    if not sep or not port.isdigit():
+        return  # "auto" or another form Ray resolves itself
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as e:
+        raise ClusterError(f"the Ray cluster at {address} cannot be reached ({e.strerror or type(e).__name__}); "
+                           "start it with `ray start --head` or pass another --address") from None
+
+
+_STATE: dict[str, Any] = {}  # in a Ray worker process: the initializer key it ran
+_SESSION: dict[str, Any] = {}  # in the driver: the address this process is connected to
+
+
+def _job(work: Callable[[Any], Any] | None, initializer: Callable[..., None] | None, initargs: tuple[Any, ...],
+         job: Any) -> Any:
+    """The body of every Ray task: set the worker up once per (initializer, initargs), then run the job
+    (``work`` None: only the set-up, the probe of ``connect``)."""
+    key = (initializer, initargs)
+    if initializer is not None and _STATE.get("key") != key:
+        initializer(*initargs)
+        _STATE["key"] = key
+    if work is None:
+        import kgn_bench
+        from kgn_bench.resources import arm_xml
+
+        return {"version": kgn_bench.__version__, "assets": arm_xml().is_file()}
+    return work(job)
+
+
+def _remote(ray, num_cpus: float, num_gpus: float):
+    fn = _SESSION.get("remote")
+    if fn is None:
+        fn = _SESSION["remote"] = ray.remote(_job)
+    return fn.options(num_cpus=num_cpus, num_gpus=num_gpus, max_retries=MAX_RETRIES, retry_exceptions=False,
+                      runtime_env={"env_vars": worker_env()}, name="kgn_bench_job")
+
+
+def _unwrap(ray, e: BaseException) -> BaseException:
+    """The job's own exception inside a ``RayTaskError``, else a ``ClusterError`` for Ray's own failures."""
+    if isinstance(e, ray.exceptions.RayTaskError):
+        cause = getattr(e, "cause", None)
+        if isinstance(cause, BaseException) and not isinstance(cause, ray.exceptions.RayError):
+            return cause
+    return e
+
+
+def connect(address: str | None, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
+            num_cpus: float = 1.0, num_gpus: float = 0.0) -> None:
+    """Join the Ray cluster at ``address`` (None: ``RAY_ADDRESS``, else start a local Ray with this machine's
+    cores) unless this process is already connected there, then run ``initializer(*initargs)`` on one worker:
+    ``ClusterError`` in one line if the cluster cannot be reached or its workers cannot run the jobs."""
+    ray = _ray()
+    address = address or os.environ.get("RAY_ADDRESS") or None
+    if ray.is_initialized() and _SESSION.get("address", address) != address:
+        ray.shutdown()
+    if not ray.is_initialized():
+        if address:
+            _check_reachable(address)
+        # "local": a new Ray of this process, never one that `ray start` left running on this machine
+        kwargs: dict[str, Any] = {"address": address} if address else {
+            "address": "local", "num_cpus": available_cores(), "include_dashboard": False}
+        try:
+            ray.init(log_to_driver=False, configure_logging=False, **kwargs)
+        except Exception as e:  # ConnectionError, RuntimeError, ...: Ray's many ways of saying "not there"
+            where = f"at {address}" if address else "(local)"
+            hint = ("; a cluster with token authentication needs RAY_AUTH_MODE=token and its token (RAY_AUTH_TOKEN)"
+                    if address and os.environ.get("RAY_AUTH_MODE") is None else "")
+            raise ClusterError(f"the Ray cluster {where} cannot be used: {_first_line(e)}{hint}") from None
+        _SESSION.clear()
+        _SESSION["address"] = address
+    probe = _SESSION.get("probed")
+    key = (initializer, tuple(initargs), num_cpus, num_gpus)
+    if probe == key:
+        return
+    ref = _remote(ray, num_cpus, num_gpus).remote(None, initializer, tuple(initargs), None)
+    try:
+        info = ray.get(ref)
+    except Exception as e:
+        cause = _unwrap(ray, e)
+        raise ClusterError(f"the Ray workers cannot run kgn-bench ({_first_line(cause)}); install the same "
+                           f"kgn-bench on every node ({INSTALL_HINT}) or ship it in a runtime_env") from None
+    if not info.get("assets"):
+        raise ClusterError(f"the Ray workers' kgn-bench {info.get('version')} has no assets (arm7.xml); install the "
+                           "wheel, which carries them, on every node")
+    _SESSION["probed"] = key
+
+
+def shutdown() -> None:
+    """Leave the cluster (a local Ray this process started stops with it)."""
+    import sys
+
+    ray = sys.modules.get("ray")
+    if ray is not None and ray.is_initialized():
+        ray.shutdown()
+    _SESSION.clear()
+
+
+def run_ray_jobs(jobs: Sequence[J], work: Callable[[J], R], on_result: Callable[[R], Any], *, address: str | None,
+                 workers: int, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
+                 num_cpus: float = 1.0, num_gpus: float = 0.0, what: str = "jobs") -> None:
+    """``pool.run_jobs`` on Ray: at most ``workers`` jobs in flight, each result to ``on_result`` as it
+    arrives. A job's exception cancels the rest and is raised here as it is; a worker that died more than
+    ``MAX_RETRIES`` times raises ``ClusterError`` naming ``what`` (finished results are kept)."""
+    initargs = tuple(initargs)
+    connect(address, initializer, initargs, num_cpus, num_gpus)
+    ray = _ray()
+    remote = _remote(ray, num_cpus, num_gpus)
+    queue = list(jobs)[::-1]
+    pending: list[Any] = []
+    try:
+        while queue or pending:
+            while queue and len(pending) < workers:
+                pending.append(remote.remote(work, initializer, initargs, queue.pop()))
+            ready, pending = ray.wait(pending, num_returns=1)
+            try:
+                result = ray.get(ready[0])
+            except ray.exceptions.RayTaskError as e:
+                cause = _unwrap(ray, e)
+                if cause is e:
+                    raise ClusterError(f"a Ray task failed while running {what}: {_first_line(e)}") from None
+                raise cause from None
+            except ray.exceptions.RayError as e:  # the worker died more than MAX_RETRIES times, the node left
+                raise ClusterError(f"a Ray worker died while running {what} ({type(e).__name__}, after "
+                                   f"{MAX_RETRIES} retries); the finished ones are kept, rerun the same command "
+                                   "to resume") from None
+            on_result(result)
+    except BaseException:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        raise
