@@ -11,8 +11,9 @@ Results come back to the driver as they finish and go to ``on_result`` there, so
 files as the local pool. A worker that dies mid-job (killed, out of memory) has its job rerun on another
 worker, up to ``MAX_RETRIES`` times; a job is a pure function of its arguments, so the rerun gives the same
 result. Before any job runs, ``connect`` joins the cluster (or starts a local Ray) and runs the initializer
-once on a worker: a cluster that cannot be reached, or whose workers lack the package, its assets or the
-detector's weights, is one ``ClusterError`` line before the caller writes anything.
+once on a worker, while the caller does its own checks: a cluster that cannot be reached, or whose workers
+lack the package, its assets or the detector's weights, is one ``ClusterError`` line before the caller writes
+anything.
 """
 
 from __future__ import annotations
@@ -121,10 +122,11 @@ def _unwrap(ray, e: BaseException) -> BaseException:
 
 
 def connect(address: str | None, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
-            num_cpus: float = 1.0, num_gpus: float = 0.0) -> None:
+            num_cpus: float = 1.0, num_gpus: float = 0.0) -> Callable[[], None]:
     """Join the Ray cluster at ``address`` (None: ``RAY_ADDRESS``, else start a local Ray with this machine's
-    cores) unless this process is already connected there, then run ``initializer(*initargs)`` on one worker:
-    ``ClusterError`` in one line if the cluster cannot be reached or its workers cannot run the jobs."""
+    cores) unless this process is already connected there, and start ``initializer(*initargs)`` on one worker.
+    Returns the wait for that set-up, which raises ``ClusterError`` in one line if the workers cannot run the
+    jobs (the caller does its own checks meanwhile); a cluster that cannot be reached raises here."""
     ray = _ray()
     address = address or os.environ.get("RAY_ADDRESS") or None
     if ray.is_initialized() and _SESSION.get("address", address) != address:
@@ -144,21 +146,24 @@ def connect(address: str | None, initializer: Callable[..., None] | None = None,
             raise ClusterError(f"the Ray cluster {where} cannot be used: {_first_line(e)}{hint}") from None
         _SESSION.clear()
         _SESSION["address"] = address
-    probe = _SESSION.get("probed")
     key = (initializer, tuple(initargs), num_cpus, num_gpus)
-    if probe == key:
-        return
+    if _SESSION.get("probed") == key:
+        return lambda: None
     ref = _remote(ray, num_cpus, num_gpus).remote(None, initializer, tuple(initargs), None)
-    try:
-        info = ray.get(ref)
-    except Exception as e:
-        cause = _unwrap(ray, e)
-        raise ClusterError(f"the Ray workers cannot run kgn-bench ({_first_line(cause)}); install the same "
-                           f"kgn-bench on every node ({INSTALL_HINT}) or ship it in a runtime_env") from None
-    if not info.get("assets"):
-        raise ClusterError(f"the Ray workers' kgn-bench {info.get('version')} has no assets (arm7.xml); install the "
-                           "wheel, which carries them, on every node")
-    _SESSION["probed"] = key
+
+    def wait() -> None:
+        try:
+            info = ray.get(ref)
+        except Exception as e:
+            cause = _unwrap(ray, e)
+            raise ClusterError(f"the Ray workers cannot run kgn-bench ({_first_line(cause)}); install the same "
+                               f"kgn-bench on every node ({INSTALL_HINT}) or ship it in a runtime_env") from None
+        if not info.get("assets"):
+            raise ClusterError(f"the Ray workers' kgn-bench {info.get('version')} has no assets (arm7.xml); install "
+                               "the wheel, which carries them, on every node")
+        _SESSION["probed"] = key
+
+    return wait
 
 
 def shutdown() -> None:
@@ -178,7 +183,7 @@ def run_ray_jobs(jobs: Sequence[J], work: Callable[[J], R], on_result: Callable[
     arrives. A job's exception cancels the rest and is raised here as it is; a worker that died more than
     ``MAX_RETRIES`` times raises ``ClusterError`` naming ``what`` (finished results are kept)."""
     initargs = tuple(initargs)
-    connect(address, initializer, initargs, num_cpus, num_gpus)
+    connect(address, initializer, initargs, num_cpus, num_gpus)()
     ray = _ray()
     remote = _remote(ray, num_cpus, num_gpus)
     queue = list(jobs)[::-1]

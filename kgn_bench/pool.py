@@ -53,13 +53,17 @@ class Backend:
         if self.num_cpus <= 0 or self.num_gpus < 0:
             raise ValueError("num_cpus must be > 0 and num_gpus ≥ 0")
 
-    def prepare(self, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = ()) -> None:
-        """Check, before anything is written, that the jobs can run there: for Ray, join the cluster and set
-        one worker up with ``initializer(*initargs)`` (``cluster.ClusterError`` in one line if not)."""
+    def prepare(self, initializer: Callable[..., None] | None = None,
+                initargs: Iterable[Any] = ()) -> Callable[[], None]:
+        """Start checking that the jobs can run there; the returned call waits for the answer, so that the
+        caller's own checks overlap it, and must be made before anything is written. For Ray: join the cluster
+        (an unreachable one raises here) and set one worker up with ``initializer(*initargs)``
+        (``cluster.ClusterError`` in one line from the wait if that fails). Locally: nothing to check."""
         if self.kind == "ray":
             from kgn_bench.cluster import connect
 
-            connect(self.address, initializer, initargs, self.num_cpus, self.num_gpus)
+            return connect(self.address, initializer, initargs, self.num_cpus, self.num_gpus)
+        return lambda: None
 
 
 LOCAL = Backend()

@@ -4,8 +4,9 @@ A local Ray started in this process gives the local pool's trial records and sum
 local pool began (and the other way round), generates a byte-identical dataset, and raises a job's own error.
 A Ray head started with ``ray start --head`` on 127.0.0.1 (2 CPUs) and joined with ``--address`` runs the CI
 regression task with the oracle, with one worker killed mid-trial, to the local run's summary bytes and
-records. A cluster that cannot be reached, or whose workers lack a module the detector needs, is one line
-with nothing written. After the module no Ray process is left.
+records. A driver killed mid-run takes its local Ray with it, and the same command resumes to the same summary.
+A cluster that cannot be reached, or whose workers lack a module the detector needs, is one line with nothing
+written. After the module no Ray process is left.
 """
 
 from __future__ import annotations
@@ -178,28 +179,51 @@ def test_workers_that_lack_the_detectors_module_are_one_line_and_nothing_is_writ
     assert not out.exists()
 
 
+def test_a_driver_killed_mid_run_resumes_with_the_same_command(tmp_path):
+    """The driver (with the local Ray it started) is SIGKILLed after its first trial; its Ray goes with it,
+    and the same command finishes the run to the local pool's summary bytes."""
+    local, out = tmp_path / "local", tmp_path / "ray"
+    run_benchmark(load_task(TASKS / "ci_oracle.toml"), "oracle", local, workers=1, progress=False)
+    cmd = [str(Path(sys.executable).parent / "kgn-bench"), "run", "ci_oracle", "--detector", "oracle", "--workers",
+           "1", "--quiet", "--backend", "ray", "--out", str(out)]
+    before = {p.pid for p in _ray_daemons()}
+    driver = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    trials = out / "trials.jsonl"
+    deadline = time.monotonic() + 120
+    while not (trials.is_file() and trials.read_text().count("\n") >= 1) and time.monotonic() < deadline:
+        assert driver.poll() is None, "the driver ended before its first trial"
+        time.sleep(0.05)
+    driver.kill()
+    driver.wait()
+    done = trials.read_text().count("\n")
+    assert 1 <= done < 6
+    deadline = time.monotonic() + 30
+    while {p.pid for p in _ray_daemons()} - before and time.monotonic() < deadline:
+        time.sleep(0.5)
+    assert not {p.pid for p in _ray_daemons()} - before, "the killed driver's Ray is still running"
+    resumed = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"{6 - done} trials in" in resumed.stdout
+    _same_run(local, out)
+    assert len(trials.read_text().splitlines()) == 6
+
+
 # -- a Ray head started with `ray start --head`, joined with --address -----------------------------------
 
 
 @pytest.fixture(scope="module")
 def ray_head():
-    """``ray start --head`` on 127.0.0.1 with 2 CPUs and token authentication (a token of this module), joined
-    by address; stopped with ``ray stop --force`` afterwards."""
-    saved = {k: os.environ.get(k) for k in ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN")}
-    os.environ.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
+    """``ray start --head`` on 127.0.0.1 with 2 CPUs and token authentication (a token of this module):
+    ``(address, env)``, ``env`` being what a driver needs to join it; ``ray stop --force`` afterwards."""
+    cluster.shutdown()  # the local Ray of the tests above is not needed any more
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32)}
     port = _free_port()
     try:
         subprocess.run([RAY, "start", "--head", "--num-cpus", "2", "--port", str(port), "--include-dashboard=false",
-                        "--disable-usage-stats"], check=True, capture_output=True, timeout=180)
-        yield f"127.0.0.1:{port}"
+                        "--disable-usage-stats"], check=True, capture_output=True, timeout=180, env=env)
+        yield f"127.0.0.1:{port}", env
     finally:
-        cluster.shutdown()
-        subprocess.run([RAY, "stop", "--force"], capture_output=True, timeout=120)
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        subprocess.run([RAY, "stop", "--force"], capture_output=True, timeout=120, env=env)
 
 
 def _kill_one_job_worker(started: Path, killed: list[int], stop: threading.Event) -> None:
@@ -221,8 +245,9 @@ def _kill_one_job_worker(started: Path, killed: list[int], stop: threading.Event
         time.sleep(0.1)
 
 
-def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worker_killed(ray_head, tmp_path,
-                                                                                         capsys):
+def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worker_killed(ray_head, tmp_path):
+    """The driver is a `kgn-bench run --backend ray --address` process of its own, as on a real cluster."""
+    address, env = ray_head
     task = str(TASKS / "ci_regression.toml")
     local, on_ray = tmp_path / "local", tmp_path / "ray"
     assert main(["run", task, "--detector", "oracle", "--workers", "2", "--quiet", "--out", str(local)]) == 0
@@ -231,14 +256,15 @@ def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worke
     killer = threading.Thread(target=_kill_one_job_worker, args=(on_ray / "run.json", killed, stop), daemon=True)
     killer.start()
     try:
-        rc = main(["run", task, "--detector", "oracle", "--workers", "2", "--quiet", "--backend", "ray",
-                   "--address", ray_head, "--out", str(on_ray)])
+        driver = subprocess.run([str(Path(sys.executable).parent / "kgn-bench"), "run", task, "--detector", "oracle",
+                                 "--workers", "2", "--quiet", "--backend", "ray", "--address", address, "--out",
+                                 str(on_ray)], capture_output=True, text=True, timeout=400, env=env)
     finally:
         stop.set()
         killer.join()
-    assert rc == 0, capsys.readouterr().err
+    assert driver.returncode == 0, driver.stderr
     assert killed, "no Ray worker was running a trial"
-    assert "2 in flight on Ray" in capsys.readouterr().out
+    assert "2 in flight on Ray" in driver.stdout
     _same_run(local, on_ray)
     assert len((on_ray / "trials.jsonl").read_text().splitlines()) == 4  # the killed trial once, after its retry
     assert json.loads((on_ray / "run.json").read_text())["trials"] == 4

@@ -221,9 +221,10 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
         raise ValueError("workers must be ≥ 1")
     if record and backend.kind != "local":
         raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
+    cluster_ready = backend.prepare(_worker_init, (detector,))  # a Ray worker builds the detector meanwhile
     instance = build_detector(detector)  # fails here, in one line, before anything is written
     check_cameras(task)  # and so does a camera that cannot see the workspace
-    backend.prepare(_worker_init, (detector,))  # and so does a cluster that cannot run the trials
+    cluster_ready()  # and so does a cluster that cannot run the trials
     out = Path(out)
     identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
     with run_lock(out):
