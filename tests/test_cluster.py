@@ -4,7 +4,7 @@ A local Ray started in this process gives the local pool's trial records and sum
 local pool began (and the other way round), generates a byte-identical dataset, and raises a job's own error.
 A Ray head started with ``ray start --head`` on 127.0.0.1 (2 CPUs) and joined with ``--address`` runs the CI
 regression task with the oracle, with one worker killed mid-trial, to the local run's summary bytes and
-records. A driver killed mid-run takes its local Ray with it, and the same command resumes to the same summary.
+records; a driver killed mid-run has its jobs stopped there, and the same command resumes to the same summary.
 A cluster that cannot be reached, or whose workers lack a module the detector needs, is one line with nothing
 written. After the module no Ray process is left.
 """
@@ -179,35 +179,6 @@ def test_workers_that_lack_the_detectors_module_are_one_line_and_nothing_is_writ
     assert not out.exists()
 
 
-def test_a_driver_killed_mid_run_resumes_with_the_same_command(tmp_path):
-    """The driver (with the local Ray it started) is SIGKILLed after its first trial; its Ray goes with it,
-    and the same command finishes the run to the local pool's summary bytes."""
-    local, out = tmp_path / "local", tmp_path / "ray"
-    run_benchmark(load_task(TASKS / "ci_oracle.toml"), "oracle", local, workers=1, progress=False)
-    cmd = [str(Path(sys.executable).parent / "kgn-bench"), "run", "ci_oracle", "--detector", "oracle", "--workers",
-           "1", "--quiet", "--backend", "ray", "--out", str(out)]
-    before = {p.pid for p in _ray_daemons()}
-    driver = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    trials = out / "trials.jsonl"
-    deadline = time.monotonic() + 120
-    while not (trials.is_file() and trials.read_text().count("\n") >= 1) and time.monotonic() < deadline:
-        assert driver.poll() is None, "the driver ended before its first trial"
-        time.sleep(0.05)
-    driver.kill()
-    driver.wait()
-    done = trials.read_text().count("\n")
-    assert 1 <= done < 6
-    deadline = time.monotonic() + 30
-    while {p.pid for p in _ray_daemons()} - before and time.monotonic() < deadline:
-        time.sleep(0.5)
-    assert not {p.pid for p in _ray_daemons()} - before, "the killed driver's Ray is still running"
-    resumed = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert resumed.returncode == 0, resumed.stderr
-    assert f"{6 - done} trials in" in resumed.stdout
-    _same_run(local, out)
-    assert len(trials.read_text().splitlines()) == 6
-
-
 # -- a Ray head started with `ray start --head`, joined with --address -----------------------------------
 
 
@@ -268,3 +239,36 @@ def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worke
     _same_run(local, on_ray)
     assert len((on_ray / "trials.jsonl").read_text().splitlines()) == 4  # the killed trial once, after its retry
     assert json.loads((on_ray / "run.json").read_text())["trials"] == 4
+
+
+def _job_workers() -> list[psutil.Process]:
+    return [p for p in psutil.process_iter(["cmdline"]) if "ray::kgn_bench_job" in " ".join(p.info["cmdline"] or [])]
+
+
+def test_a_driver_killed_mid_run_resumes_with_the_same_command(ray_head, tmp_path):
+    """The driver is SIGKILLed after its first trial: the head stops its jobs, and the same command finishes the
+    run to the local pool's summary bytes."""
+    address, env = ray_head
+    local, out = tmp_path / "local", tmp_path / "ray"
+    run_benchmark(load_task(TASKS / "ci_oracle.toml"), "oracle", local, workers=1, progress=False)
+    cmd = [str(Path(sys.executable).parent / "kgn-bench"), "run", "ci_oracle", "--detector", "oracle", "--workers",
+           "1", "--quiet", "--backend", "ray", "--address", address, "--out", str(out)]
+    driver = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    trials = out / "trials.jsonl"
+    deadline = time.monotonic() + 120
+    while not (trials.is_file() and trials.read_text().count("\n") >= 1) and time.monotonic() < deadline:
+        assert driver.poll() is None, "the driver ended before its first trial"
+        time.sleep(0.05)
+    driver.kill()
+    driver.wait()
+    done = trials.read_text().count("\n")
+    assert 1 <= done < 6
+    deadline = time.monotonic() + 30
+    while _job_workers() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _job_workers(), "the killed driver's jobs still run on the head"
+    resumed = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"{6 - done} trials in" in resumed.stdout
+    _same_run(local, out)
+    assert len(trials.read_text().splitlines()) == 6
