@@ -44,10 +44,20 @@ def _warn(message: str) -> None:
 
 
 def _backend(args):
-    """The ``pool.Backend`` of ``--backend``, ``--address`` and ``--num-gpus``."""
+    """The ``pool.Backend`` of ``--backend``, ``--address`` and ``--num-gpus``; sets ``args.workers`` when it was
+    not given (the command's default locally, the jobs the cluster runs at once on Ray) and warns when more
+    local workers are asked for than there are cores."""
     from kgn_bench.pool import Backend
 
-    return Backend(args.backend, address=args.address, num_gpus=args.num_gpus)
+    backend = Backend(args.backend, address=args.address, num_gpus=args.num_gpus)
+    if args.workers is None and backend.kind == "ray":
+        from kgn_bench.cluster import job_slots
+
+        args.workers = job_slots(backend.address, backend.num_cpus, backend.num_gpus)
+    elif args.workers is None:
+        args.workers = args.local_workers
+    _check_workers(args.workers, args.backend)
+    return backend
 
 
 def _check_workers(workers: int, backend: str = "local") -> None:
@@ -84,7 +94,6 @@ def _cmd_data_generate(args) -> int:
     from kgn_bench.sim.scene import PhysicsError
 
     backend = _backend(args)
-    _check_workers(args.workers, args.backend)
     _writable(args.out)
     config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed)
     try:
@@ -140,7 +149,6 @@ def _cmd_run(args) -> int:
     task = _apply_settings(task, args.set)
     out = args.out or Path("runs") / f"{task.name}_{args.detector.replace(':', '.')}_seed{task.seed}"
     backend = _backend(args)
-    _check_workers(args.workers, args.backend)
     _writable(out, "run folder")
     result = run_benchmark(task, args.detector, out, workers=args.workers, record=args.record,
                            progress=not args.quiet, backend=backend)
@@ -164,7 +172,6 @@ def _cmd_sweep(args) -> int:
     name = detectors[0] if len(detectors) == 1 else "detectors"
     out = args.out or Path("runs") / f"sweep_{task.name}_{name}_{args.param}"
     backend = _backend(args)
-    _check_workers(args.workers, args.backend)
     _writable(out, "sweep folder")
     if len(detectors) == 1:
         points = run_sweep(task, detectors[0], args.param, args.values, out, workers=args.workers,
@@ -213,7 +220,6 @@ def _cmd_benchmark(args) -> int:
     plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
     plan = replace(plan, tasks=tuple(_apply_settings(t, args.set) for t in plan.tasks))
     backend = _backend(args)
-    _check_workers(args.workers, args.backend)
     _writable(args.runs, "runs folder")
     _writable(args.out, "report folder")
     folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet, backend=backend)
@@ -375,10 +381,16 @@ def _parent(*adders) -> argparse.ArgumentParser:
     return parent
 
 
-def _workers(default: int):
+def _workers(default: int, cluster: bool = False):
     def add(p):
-        p.add_argument("--workers", type=_int_at_least(1), default=default,
-                       help=f"worker processes (default {default})")
+        if not cluster:
+            p.add_argument("--workers", type=_int_at_least(1), default=default,
+                           help=f"worker processes (default {default})")
+            return
+        p.add_argument("--workers", type=_int_at_least(1),
+                       help=f"worker processes (default {default}); with --backend ray the jobs in flight on the "
+                            "cluster (default: as many as its CPUs run at once)")
+        p.set_defaults(local_workers=default)
     return add
 
 
@@ -431,7 +443,7 @@ def _add_data(sub) -> None:
     data = sub.add_parser("data", help="the Primitive Shape dataset")
     dsub = data.add_subparsers(dest="data_command", required=True, parser_class=_Parser)
     gen = dsub.add_parser("generate", help="generate a PS dataset (resumes an interrupted run)",
-                          parents=[_parent(_workers(1), _cluster, _quiet)])
+                          parents=[_parent(_workers(1, cluster=True), _cluster, _quiet)])
     gen.add_argument("--mode", choices=("single", "multi"), required=True,
                      help="single: one random shape per scene; multi: one of each of the six shapes")
     gen.add_argument("--scenes", type=_int_at_least(1), default=1000, help="number of scenes (default 1000)")
@@ -473,14 +485,15 @@ def _add_perf(sub) -> None:
 
 def _add_closed_loop(sub) -> None:
     detector_help = "kgnv2, kgn, kgn_depth, antipodal, random, oracle, ... or module:attribute for your own"
+    one_task = _parent(_task, _overrides, _workers(1, cluster=True), _settings("the task"), _cluster, _quiet)
     run = sub.add_parser("run", help="run a closed-loop benchmark task (resumes an interrupted run)",
-                         parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _cluster, _quiet)])
+                         parents=[one_task])
     run.add_argument("--detector", required=True, help=detector_help)
     run.add_argument("--record", action="store_true", help="write a rerun recording (recording.rrd)")
     run.add_argument("--out", type=Path, help="run folder (default runs/<task>_<detector>_seed<seed>)")
     run.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run one task at several values of one setting (e.g. depth noise)",
-                        parents=[_parent(_task, _overrides, _workers(1), _settings("the task"), _cluster, _quiet)])
+                        parents=[one_task])
     sw.add_argument("--detector", required=True, nargs="+",
                     help=detector_help + "; several give one sweep each, side by side (a viewpoint study with a "
                                          "camera.* setting)")
@@ -489,7 +502,7 @@ def _add_closed_loop(sub) -> None:
     sw.add_argument("--out", type=Path, help="sweep folder (default runs/sweep_<task>_<detector>_<param>)")
     sw.set_defaults(func=_cmd_sweep)
     bm = sub.add_parser("benchmark", help="run every task x detector of a plan, then write the report",
-                        parents=[_parent(_workers(2), _settings("every task"), _cluster, _quiet)])
+                        parents=[_parent(_workers(2, cluster=True), _settings("every task"), _cluster, _quiet)])
     bm.add_argument("plan", type=Path, nargs="?", default=Path("benchmark"),
                     help="plan file, or a bundled plan's name (default: the bundled benchmark plan)")
     bm.add_argument("--tasks", nargs="+", help="only these tasks of the plan")

@@ -26,7 +26,7 @@ from typing import Any, TypeVar
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.threads import TRIAL_THREADS, available_cores
 
-__all__ = ["MAX_RETRIES", "WORKER_ENV", "ClusterError", "connect", "run_ray_jobs", "shutdown"]
+__all__ = ["MAX_RETRIES", "WORKER_ENV", "ClusterError", "connect", "job_slots", "run_ray_jobs", "shutdown"]
 
 J = TypeVar("J")
 R = TypeVar("R")
@@ -121,13 +121,8 @@ def _unwrap(ray, e: BaseException) -> BaseException:
     return e
 
 
-def connect(address: str | None, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
-            num_cpus: float = 1.0, num_gpus: float = 0.0) -> Callable[[], None]:
-    """Join the Ray cluster at ``address`` (None: ``RAY_ADDRESS``, else start a local Ray with this machine's
-    cores) unless this process is already connected there, and start ``initializer(*initargs)`` on one worker.
-    Returns the wait for that set-up, which raises ``ClusterError`` in one line if the workers cannot run the
-    jobs (the caller does its own checks meanwhile); a cluster that cannot be reached raises here."""
-    ray = _ray()
+def _join(ray, address: str | None) -> None:
+    """Connect this process to ``address`` (None: ``RAY_ADDRESS``, else a new local Ray), unless it is already."""
     address = address or os.environ.get("RAY_ADDRESS") or None
     if ray.is_initialized() and _SESSION.get("address", address) != address:
         ray.shutdown()
@@ -146,6 +141,28 @@ def connect(address: str | None, initializer: Callable[..., None] | None = None,
             raise ClusterError(f"the Ray cluster {where} cannot be used: {_first_line(e)}{hint}") from None
         _SESSION.clear()
         _SESSION["address"] = address
+
+
+def job_slots(address: str | None, num_cpus: float = 1.0, num_gpus: float = 0.0) -> int:
+    """How many jobs of ``num_cpus`` CPUs (and ``num_gpus`` GPUs) the cluster at ``address`` runs at once (≥ 1):
+    the default of ``--workers`` with ``--backend ray``. Joins the cluster (``ClusterError`` if it cannot)."""
+    ray = _ray()
+    _join(ray, address)
+    resources = ray.cluster_resources()
+    slots = resources.get("CPU", 0.0) // num_cpus
+    if num_gpus:
+        slots = min(slots, resources.get("GPU", 0.0) // num_gpus)
+    return max(1, int(slots))
+
+
+def connect(address: str | None, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
+            num_cpus: float = 1.0, num_gpus: float = 0.0) -> Callable[[], None]:
+    """Join the Ray cluster at ``address`` (None: ``RAY_ADDRESS``, else start a local Ray with this machine's
+    cores) unless this process is already connected there, and start ``initializer(*initargs)`` on one worker.
+    Returns the wait for that set-up, which raises ``ClusterError`` in one line if the workers cannot run the
+    jobs (the caller does its own checks meanwhile); a cluster that cannot be reached raises here."""
+    ray = _ray()
+    _join(ray, address)
     key = (initializer, tuple(initargs), num_cpus, num_gpus)
     if _SESSION.get("probed") == key:
         return lambda: None

@@ -228,14 +228,14 @@ def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worke
     killer.start()
     try:
         driver = subprocess.run([str(Path(sys.executable).parent / "kgn-bench"), "run", task, "--detector", "oracle",
-                                 "--workers", "2", "--quiet", "--backend", "ray", "--address", address, "--out",
-                                 str(on_ray)], capture_output=True, text=True, timeout=400, env=env)
+                                 "--quiet", "--backend", "ray", "--address", address, "--out", str(on_ray)],
+                                capture_output=True, text=True, timeout=400, env=env)
     finally:
         stop.set()
         killer.join()
     assert driver.returncode == 0, driver.stderr
     assert killed, "no Ray worker was running a trial"
-    assert "2 in flight on Ray" in driver.stdout
+    assert "2 in flight on Ray" in driver.stdout  # --workers defaults to the head's 2 CPUs
     _same_run(local, on_ray)
     assert len((on_ray / "trials.jsonl").read_text().splitlines()) == 4  # the killed trial once, after its retry
     assert json.loads((on_ray / "run.json").read_text())["trials"] == 4
