@@ -291,6 +291,7 @@ def build_table1(data_dirs: DataDirs | None, out: Path, views: int | None = None
             lines.append(head + ("ahead in every cell where the paper has it ahead." if not losses else
                                  f"behind in {len(losses)} cell(s) where the paper has it ahead: "
                                  + "; ".join(losses) + "."))
+    lines += _recipe_lines(TABLE1_ROWS)
     if missing:
         lines += ["", "Missing (rows shown as —):", *[f"- {m}" for m in missing]]
     text = "\n".join(lines) + "\n"
@@ -323,12 +324,39 @@ def build_table2(data_dirs: DataDirs | None, out: Path, views: int | None = None
         o = ours.get(name)
         lines.append(f"| {MODELS[name].label} | {sb} | {sk} | {trans} | {_cell(o)} | "
                      f"{_cell(paper) if paper else 'not in paper'} | {_diff(o, paper) if paper else '—'} |")
+    lines += _recipe_lines(TABLE2_ROWS)
     if missing:
         lines += ["", "Missing (rows shown as —):", *[f"- {m}" for m in missing]]
     text = "\n".join(lines) + "\n"
     payload = {"ours": ours, "paper": PAPER_TABLE2, "metrics": METRICS, "missing": missing, "views": views}
     _write(out, "vision_table2", text, payload)
     return text, payload
+
+
+def recipe_of(model: ModelSpec) -> str:
+    """How ``model``'s shipped weights were trained, from their checkpoint: ``recipe 2`` (the frontal target
+    assignment, and the depth-anchored scale for a scale head) or ``recipe 1`` (the reference's targets and
+    scale), with the epochs; ``not trained`` when the weights are absent, ``unknown`` when unreadable."""
+    from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint
+
+    weights = WEIGHTS_DIR / f"{model.weights}.pt"
+    if not weights.is_file():
+        return "not trained"
+    try:
+        data = load_checkpoint(weights)
+    except CheckpointError:
+        return "unknown (the weights are not a readable checkpoint)"
+    train = data.get("train", {}).get("train", {})
+    epochs = data.get("epoch", "?")
+    if train.get("assignment", "first") == "frontal":
+        anchor = ", depth-anchored scale" if data.get("scale_anchor", "none") == "depth" else ""
+        return f"recipe 2 ({epochs} epochs, frontal targets{anchor})"
+    return f"recipe 1 ({epochs} epochs)"
+
+
+def _recipe_lines(rows: tuple[str, ...]) -> list[str]:
+    return ["", "Training recipe of each row's shipped weights (README \"Where the 1 cm misses come from\"):", "",
+            *[f"- {MODELS[name].label}: {recipe_of(MODELS[name])}" for name in rows]]
 
 
 def _write(out: Path, stem: str, text: str, payload: dict) -> None:
