@@ -96,7 +96,7 @@ def sweep_figure(task: TaskConfig, key: str, series: dict[str, list[SweepPoint]]
             lines.append(Line(det, _positions([p.value for p in points]), [100 * r.value for r in rates], color=k,
                               band=([100 * r.interval[0] for r in rates], [100 * r.interval[1] for r in rates])))
         panels.append(Panel(f"{task.name}: {rate} rate", key, f"{rate} rate (%)", lines))
-    return line_panels(panels, suptitle=f"Sweep of {key} (seed {task.seed}, Wilson 95 % bands)")
+    return line_panels(panels, suptitle=f"seed {task.seed}, Wilson 95 % bands")
 
 
 def run_detector_sweep(task: TaskConfig, detectors: list[str], key: str, values: list[str], out: Path,
