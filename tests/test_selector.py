@@ -23,7 +23,7 @@ from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q
 
 HEIGHT = 0.05
-FAR = np.array([0.45, 0.0])  # the second box: 1 m from the arm base
+FAR = np.array([0.38, 0.30])  # the second box: 0.98 m from the arm base, inside the workspace
 EXEC = ExecutionConfig()
 CFG = SelectorConfig(approach_search=0.0, closing_search=0.0, centre_range=0.0, level_deg=0.0, palm_margin=0.0,
                      reprojection_weight=0.02)  # every check at the candidate's own pose, the bare boxes
