@@ -184,11 +184,12 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         return Rate.from_dict(s["rates"][col.rate]) if s and col.rate in s["rates"] else None
 
     lines = ["# KGN-Bench closed-loop benchmark", "",
-             "Rates in % with Wilson 95 % intervals and (successes / attempts; for clear: removed / placed).", "",
-             "| detector | " + " | ".join(c.label for c in columns) + " |", "|---|" + "---|" * len(columns)]
-    for det in detectors:
-        lines.append(f"| {det} | " + " | ".join(str(r).replace(" %", "") if (r := rate(det, c)) else "—"
-                                               for c in columns) + " |")
+             "Rates in % with Wilson 95 % intervals and (successes / attempts; for clear: removed / placed)."]
+    if columns:  # a report of hard-tier runs only has no main table
+        lines += ["", "| detector | " + " | ".join(c.label for c in columns) + " |", "|---|" + "---|" * len(columns)]
+        for det in detectors:
+            lines.append(f"| {det} | " + " | ".join(str(r).replace(" %", "") if (r := rate(det, c)) else "—"
+                                                   for c in columns) + " |")
     for det, figures in PAPER.items():
         shown = [figures.get((c.task, c.rate)) for c in columns]
         if any(shown):
@@ -239,7 +240,7 @@ def _hard_lines(hard: list[dict[str, Any]], columns: list[Column], detectors: li
     """The hard tier: detectors × (task, GSR / DR), the objects that fell, and GIGA's figures as context."""
     label = {"success": "GSR", "clear": "DR"}
     lines = ["", "## Hard tier: pile and packed clutter", "",
-             "GSR = successes / attempts, DR = objects removed / objects on the table at the start of the round, "
+             "GSR = successes / executed grasps, DR = objects removed / objects on the table at the start of the round, "
              "in % with Wilson 95 % intervals. `raw`: the detector's grasp executed as predicted (the paper's "
              "checks only); `assisted`: with the selector's repairs (pose search, centring, levelling, bite).", "",
              "| detector | " + " | ".join(f"{c.task} {label.get(c.rate, c.rate)}" for c in columns) + " |",
