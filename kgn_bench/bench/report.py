@@ -240,8 +240,8 @@ def _hard_lines(hard: list[dict[str, Any]], columns: list[Column], detectors: li
     """The hard tier: detectors × (task, GSR / DR), the objects that fell, and GIGA's figures as context."""
     label = {"success": "GSR", "clear": "DR"}
     lines = ["", "## Hard tier: pile and packed clutter", "",
-             "GSR = successes / executed grasps, DR = objects removed / objects on the table at the start of the round, "
-             "in % with Wilson 95 % intervals. `raw`: the detector's grasp executed as predicted (the paper's "
+             "GSR = successes / executed grasps, DR = objects removed / objects on the table at the start of the "
+             "round, in % with Wilson 95 % intervals. `raw`: the detector's grasp executed as predicted (the paper's "
              "checks only); `assisted`: with the selector's repairs (pose search, centring, levelling, bite).", "",
              "| detector | " + " | ".join(f"{c.task} {label.get(c.rate, c.rate)}" for c in columns) + " |",
              "|---|" + "---|" * len(columns)]
