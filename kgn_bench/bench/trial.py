@@ -58,10 +58,9 @@ CAMERA_STREAM = 7
 def camera_pose(task: TaskConfig, index: int = 0) -> np.ndarray:
     """The camera of trial ``index``, ``T_world_cam`` (OpenCV axes): the task's fixed camera, or one drawn
     from its ranges (``CameraConfig.draw``)."""
-    c = task.camera
-    distance, elevation, azimuth = c.draw(np.random.default_rng([task.seed, index, CAMERA_STREAM]))
+    distance, elevation, azimuth = camera_coordinates(task, index)
     T = orbit_pose(distance, np.deg2rad(elevation), np.deg2rad(azimuth))
-    T[:3, 3] += np.asarray(c.target)
+    T[:3, 3] += np.asarray(task.camera.target)
     return T
 
 
