@@ -373,6 +373,61 @@ def _cmd_experiment(args) -> int:
     return 0
 
 
+def _cmd_objects_add(args) -> int:
+    from kgn_bench.objects.importer import ImportConfig, import_mesh
+    from kgn_bench.shapes.mesh_object import MeshObject
+
+    config = ImportConfig(scale=args.scale, size=args.size, density=args.density, mass=args.mass,
+                          color=tuple(args.color), hulls=args.hulls, seed=args.seed, verify=args.verify,
+                          licence=args.licence)
+    folder = import_mesh(args.mesh, args.name, config, root=args.root, overwrite=args.overwrite)
+    m = MeshObject(folder).manifest
+    g, t = m["grasps"], m["timing_s"]
+    print(f"{m['name']}: {folder} ({m['faces']} faces, {m['hulls']} hulls, {m['mass'] * 1000:.0f} g, "
+          f"{g['held']} of {g['checked']} checked grasps held, {t['total']:.1f} s)")
+    return 0
+
+
+def _cmd_objects_list(args) -> int:
+    from kgn_bench.shapes import OBJECTS
+    from kgn_bench.shapes.library import library_roots, list_objects
+    from kgn_bench.shapes.mesh_object import MeshObject
+
+    print("built-in: " + ", ".join(OBJECTS))
+    found = list_objects()
+    print(f"imported ({len(found)}; searched {', '.join(map(str, library_roots()))}):")
+    for name, folder in found.items():
+        m = MeshObject(folder).manifest
+        ext = " x ".join(f"{e * 100:.1f}" for e in m["extents_m"])
+        print(f"  {name:<16} {ext} cm  {m['mass'] * 1000:6.0f} g  {m['grasps']['held']:4d} grasps  {folder}")
+    return 0
+
+
+def _cmd_objects_show(args) -> int:
+    import numpy as np
+
+    from kgn_bench.shapes import sample_shape
+    from kgn_bench.viz.objects import draw_object
+
+    _writable_file(args.out, "image")
+    shape = sample_shape(args.name, np.random.default_rng(args.seed))
+    draw_object(shape, args.out, max_grasps=args.grasps)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_objects_import_set(args) -> int:
+    from kgn_bench.objects.pybullet_set import import_set, set_items
+
+    failed = import_set(args.split, workers=args.workers, progress=not args.quiet)
+    items = set_items(args.split)
+    for name, error in failed.items():
+        _warn(f"{name} refused: {error}")
+    print(f"pybullet {args.split}: {len(items) - len(failed)} of {len(items)} objects in the library"
+          + (f", {len(failed)} refused" if failed else ""))
+    return 0
+
+
 # -- the parser: parent parsers hold the options several commands share ------------------------------------
 def _parent(*adders) -> argparse.ArgumentParser:
     parent = _Parser(add_help=False)
@@ -583,11 +638,46 @@ def _add_studies(sub) -> None:
     exp.set_defaults(func=_cmd_experiment)
 
 
+def _add_objects(sub) -> None:
+    obj = sub.add_parser("objects", help="import meshes as benchmark objects, list and draw them")
+    osub = obj.add_subparsers(dest="objects_command", required=True, parser_class=_Parser)
+    add = osub.add_parser("add", help="import a mesh (OBJ, STL, PLY, GLB): repair, CoACD hulls, verified grasps")
+    add.add_argument("mesh", type=Path, help="mesh file")
+    add.add_argument("--name", required=True, help="object name used by task files (lower case, digits, _ -)")
+    add.add_argument("--scale", type=float, help="multiply the coordinates by this (e.g. 0.001 for mm)")
+    add.add_argument("--size", type=float, help="scale so that the largest extent is this many metres")
+    add.add_argument("--density", type=float, default=700.0, help="kg/m³ for the mass (default 700, as VGN)")
+    add.add_argument("--mass", type=float, help="mass in kg (instead of density × volume)")
+    add.add_argument("--color", type=float, nargs=3, default=(0.7, 0.55, 0.35), metavar=("R", "G", "B"))
+    add.add_argument("--hulls", type=_int_at_least(1), default=8, help="most convex pieces (CoACD; default 8)")
+    add.add_argument("--verify", type=_int_at_least(8), default=160,
+                     help="grasp candidates checked in physics (default 160)")
+    add.add_argument("--seed", type=_int_at_least(0), default=0)
+    add.add_argument("--licence", default="unknown", help="the mesh's licence, kept in the manifest")
+    add.add_argument("--root", type=Path, help="object library to write to (default $KGN_BENCH_OBJECTS or "
+                                               "~/.local/share/kgn-bench/objects)")
+    add.add_argument("--overwrite", action="store_true", help="replace an object of the same name")
+    add.set_defaults(func=_cmd_objects_add)
+    ls = osub.add_parser("list", help="the built-in object types and the imported objects")
+    ls.set_defaults(func=_cmd_objects_list)
+    show = osub.add_parser("show", help="a PNG of an object with its grasps")
+    show.add_argument("name")
+    show.add_argument("--out", type=Path, required=True, help="PNG to write")
+    show.add_argument("--grasps", type=_int_at_least(1), default=30, help="grasps drawn (default 30)")
+    show.add_argument("--seed", type=_int_at_least(0), default=0, help="size draw of a built-in type")
+    show.set_defaults(func=_cmd_objects_show)
+    iset = osub.add_parser("import-set", help="import the real-object set from pybullet_data (cached)",
+                           parents=[_parent(_workers(2), _quiet)])
+    iset.add_argument("--split", choices=("test", "train"), default="test",
+                      help="test: 40 of pybullet's test objects + duck, mug, teddy (default); train: 900")
+    iset.set_defaults(func=_cmd_objects_import_set)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``kgn-bench`` parser: one function per group of commands."""
     p = _Parser(prog="kgn-bench", description="KGNv2 grasp detection: dataset, training and closed-loop benchmark.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for add in (_add_data, _add_perf, _add_closed_loop, _add_learning, _add_studies):
+    for add in (_add_data, _add_objects, _add_perf, _add_closed_loop, _add_learning, _add_studies):
         add(sub)
     return p
 

@@ -16,7 +16,8 @@ from typing import Any
 import tomllib
 
 from kgn_bench.errors import KGNBenchError
-from kgn_bench.shapes import OBJECTS, PRIMITIVES
+from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
+from kgn_bench.shapes.library import packaged, set_names
 
 __all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES",
            "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig", "apply_override",
@@ -303,11 +304,18 @@ def load_task(path: str | Path) -> TaskConfig:
     per_scene = objects.pop("per_scene", 5)
     if objects:
         raise ConfigError(f"{path}: [objects] unknown key {next(iter(objects))!r} (known: set, per_scene)")
+    if isinstance(names, str):
+        try:
+            names = set_names(names)
+        except ObjectError as e:
+            raise ConfigError(f"{path}: [objects] set: {e}") from None
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
-        raise ConfigError(f"{path}: [objects] set must be a non-empty list of object names")
+        raise ConfigError(f"{path}: [objects] set must be a non-empty list of object names, or a set's name "
+                          "(pybullet_test)")
     for n in names:
-        if n not in OBJECTS:
-            raise ConfigError(f"{path}: unknown object {n!r} (known: {', '.join(OBJECTS)})")
+        if not (is_known(n) or packaged(n)):
+            raise ConfigError(f"{path}: unknown object {n!r} (known: {', '.join(known_names())}; "
+                              "import a mesh with `kgn-bench objects add`)")
     if not isinstance(per_scene, int) or isinstance(per_scene, bool) or per_scene < 1:
         raise ConfigError(f"{path}: [objects] per_scene must be a positive integer, got {per_scene!r}")
     cfg = TaskConfig(

@@ -49,3 +49,31 @@ def small_model():
         return net
 
     return save
+
+
+FAST_IMPORT = dict(hulls=2, verify=16)
+"""Import settings small enough for tests: at most 2 convex pieces, 16 grasps checked in physics."""
+
+
+@pytest.fixture(scope="session")
+def object_library(tmp_path_factory):
+    """A user object library (``$KGN_BENCH_OBJECTS``) holding one imported mesh, ``test_block``: a
+    4 × 6 × 10 cm box read from an STL file, imported once per session with ``FAST_IMPORT`` settings."""
+    import os
+
+    import trimesh
+
+    from kgn_bench.objects.importer import ImportConfig, import_mesh
+    from kgn_bench.shapes.grasp_sampling import SamplingConfig
+
+    root = tmp_path_factory.mktemp("objects")
+    old = os.environ.get("KGN_BENCH_OBJECTS")
+    os.environ["KGN_BENCH_OBJECTS"] = str(root)
+    stl = root.parent / "block.stl"
+    trimesh.creation.box((0.04, 0.06, 0.10)).export(stl)
+    import_mesh(stl, "test_block", ImportConfig(**FAST_IMPORT, sampling=SamplingConfig(points=200)))
+    yield root
+    if old is None:
+        os.environ.pop("KGN_BENCH_OBJECTS", None)
+    else:
+        os.environ["KGN_BENCH_OBJECTS"] = old

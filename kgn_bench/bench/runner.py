@@ -35,6 +35,7 @@ from kgn_bench.config import CLEARANCE_PROTOCOLS, TaskConfig
 from kgn_bench.environment import environment
 from kgn_bench.errors import KGNBenchError, OutputError
 from kgn_bench.io import atomic_write_text, describe_os_error
+from kgn_bench.objects.pybullet_set import ensure_objects
 from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.threads import pin_worker_threads, trial_threads
@@ -223,6 +224,7 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
         raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
     cluster_ready = backend.prepare(_worker_init, (detector,))  # a Ray worker builds the detector meanwhile
     instance = build_detector(detector)  # fails here, in one line, before anything is written
+    ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
     check_cameras(task)  # and so does a camera that cannot see the workspace
     cluster_ready()  # and so does a cluster that cannot run the trials
     out = Path(out)

@@ -30,7 +30,7 @@ import numpy as np
 
 from kgn_bench.config import CLUTTER_PROTOCOLS, TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
-from kgn_bench.shapes import shape_class
+from kgn_bench.shapes import sample_shape
 from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.depth_noise import DepthNoise
@@ -98,7 +98,7 @@ def trial_objects(task: TaskConfig, index: int, rng: np.random.Generator) -> lis
         k = task.objects_per_scene
         replace = k > len(task.objects)
         names = [task.objects[i] for i in rng.choice(len(task.objects), size=k, replace=replace)]
-    return [SceneObject(shape_class(n).sample(rng), tuple(float(c) for c in rng.uniform(0.1, 0.9, 3)))
+    return [SceneObject(sample_shape(n, rng), tuple(float(c) for c in rng.uniform(0.1, 0.9, 3)))
             for n in names]
 
 

@@ -2,14 +2,17 @@
 geoms and grasp families.
 
 ``PRIMITIVES`` is the training set (the dataset generator and the vision metrics use it alone); ``HOUSEHOLD``
-holds the closed-loop objects that never appear in training data; ``OBJECTS`` is both, and
-``shape_class``/``shape_from_dims`` look names up there.
+holds the closed-loop objects that never appear in training data; ``OBJECTS`` is both. Any other name is an
+imported object (``shapes.library``: a folder with a mesh, its collision hulls and verified grasps).
+``sample_shape``/``shape_from_dims`` build a shape of any of them by name; ``is_known`` tells a name exists.
 """
 
 from __future__ import annotations
 
 from kgn_bench.shapes.base import EVAL_DENSITY, TRAIN_DENSITY, GeomSpec, GraspDensity, RestPose, Shape
 from kgn_bench.shapes.household import HOUSEHOLD_CLASSES
+from kgn_bench.shapes.library import find_object, list_objects, load_object
+from kgn_bench.shapes.mesh_object import MeshObject, ObjectError
 from kgn_bench.shapes.primitives import Cuboid, Cylinder, Ring, SemiSphere, Sphere, Stick
 
 __all__ = [
@@ -20,8 +23,13 @@ __all__ = [
     "TRAIN_DENSITY",
     "GeomSpec",
     "GraspDensity",
+    "MeshObject",
+    "ObjectError",
     "RestPose",
     "Shape",
+    "is_known",
+    "known_names",
+    "sample_shape",
     "shape_class",
     "shape_from_dims",
 ]
@@ -46,6 +54,32 @@ def shape_class(name: str) -> type[Shape]:
         raise ValueError(f"unknown object type {name!r}; known: {', '.join(OBJECTS)}") from None
 
 
+def is_known(name: str) -> bool:
+    """Whether ``name`` is a built-in object type or an imported object in the library."""
+    return name in OBJECTS or find_object(name) is not None
+
+
+def known_names() -> list[str]:
+    """Every name a task may use: the built-in types, then the imported objects."""
+    return [*OBJECTS, *(n for n in list_objects() if n not in OBJECTS)]
+
+
+def sample_shape(name: str, rng) -> Shape:
+    """A shape of type ``name`` with sizes drawn from ``rng`` (an imported object has one size and draws
+    nothing)."""
+    if name in OBJECTS:
+        return OBJECTS[name].sample(rng)
+    return load_object(name)
+
+
 def shape_from_dims(name: str, dims: dict) -> Shape:
-    """Rebuild a shape from its stored type name and dimensions."""
-    return shape_class(name).from_dims(dims)
+    """Rebuild a shape from its stored type name and dimensions (an imported object from its folder)."""
+    if name in OBJECTS:
+        return OBJECTS[name].from_dims(dims)
+    if find_object(name) is None:
+        raise ValueError(f"unknown object type {name!r}: not built in ({', '.join(OBJECTS)}) and not an imported "
+                         "object (kgn-bench objects list)")
+    try:
+        return load_object(name)
+    except ObjectError as e:
+        raise ValueError(str(e)) from None

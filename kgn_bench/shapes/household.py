@@ -20,7 +20,7 @@ Grasp families (only the oracle uses them) are the families of the parts, in the
 
 Width = the part's extent across the closing axis + ``PINCH_CLEARANCE`` (1.5 cm), so every width fits the
 gripper. The labelling proxy ignores the grasped object itself, so grasps whose gripper would run into
-another part of the same object are dropped here (``_self_collision_free``): the fingers (from the opening the
+another part of the same object are dropped here (``gripper_sweep_free``): the fingers (from the opening the
 executor uses, width + 1 cm, in to 3 mm outside the pinched extent, and reaching 1 cm past the grasp origin as
 the executor pushes on) and the palm and wrist, swept back along the approach over the 10 cm pre-grasp
 distance, must contain no sample point of the object's surface.
@@ -67,6 +67,7 @@ __all__ = [
     "HouseholdShape",
     "LBracket",
     "Mug",
+    "gripper_sweep_free",
 ]
 
 PINCH_CLEARANCE = 0.015
@@ -214,7 +215,7 @@ def _on_axis(poses: np.ndarray, z: float) -> np.ndarray:
     return out
 
 
-def _self_collision_free(points: np.ndarray, poses: np.ndarray, widths: np.ndarray,
+def gripper_sweep_free(points: np.ndarray, poses: np.ndarray, widths: np.ndarray,
                          chunk: int = 48) -> np.ndarray:
     """(N,) bool: the gripper of each grasp, swept over its approach and its closing, contains none of the
     object ``points``.
@@ -294,7 +295,7 @@ class HouseholdShape(Shape):
             families = self._families(density)
             poses = np.concatenate([p for p, _ in families])
             widths = np.concatenate([w for _, w in families])
-            keep = _self_collision_free(self.surface_points(), poses, widths)
+            keep = gripper_sweep_free(self.surface_points(), poses, widths)
             cache[density] = GraspSet.unlabelled(poses[keep], widths[keep])
         return cache[density]
 

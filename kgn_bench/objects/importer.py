@@ -1,0 +1,255 @@
+"""``kgn-bench objects add``: turn a user's mesh into an object folder (``shapes.mesh_object``).
+
+The steps, each of which refuses a bad mesh with one ``ObjectError`` line and writes nothing:
+
+1. **read** OBJ, STL, PLY, GLB/GLTF (or anything else trimesh reads) as one mesh; a scene is concatenated;
+2. **repair**: merge seam vertices, drop degenerate and duplicate faces, fix winding and normals, fill small
+   holes; the result must be a watertight, finite, non-empty solid (the antipodal rays need an inside);
+3. **scale** by ``scale`` or to ``size`` (the largest extent, m); the object frame's origin is moved to the
+   centre of mass, the axes are kept;
+4. **check the size**: the largest extent at most ``MAX_EXTENT`` (what the table's workspace holds), the
+   smallest at least ``MIN_EXTENT``;
+5. **decompose** the collision shape with CoACD (``hulls`` at most, seeded), cached by the SHA-256 of the
+   repaired mesh and the settings, so a re-import costs nothing;
+6. **rest poses** from trimesh's quasi-static estimate (``compute_stable_poses``), the likely ones kept;
+7. **grasps**: antipodal candidates (``shapes.grasp_sampling``), at most ``verify`` of them checked in physics
+   (``sim.grasp_verify``); the ones that hold are the object's grasps, and there must be at least
+   ``MIN_GRASPS``;
+8. **write** the folder atomically (a temporary folder renamed into place) with a preview PNG.
+
+Mass: ``mass`` if given, else ``density`` (kg/m³, default 700 as in VGN/GIGA) × volume.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from kgn_bench.shapes import OBJECTS
+from kgn_bench.shapes.grasp_sampling import SamplingConfig, sample_antipodal_grasps
+from kgn_bench.shapes.library import NAME_PATTERN, user_root
+from kgn_bench.shapes.mesh_object import MANIFEST, MANIFEST_VERSION, MeshObject, ObjectError
+
+__all__ = ["MAX_EXTENT", "MIN_EXTENT", "MIN_GRASPS", "ImportConfig", "import_mesh", "repair_mesh"]
+
+MAX_EXTENT = 0.30
+"""Largest object extent (m): the pile box and the packed square are 30 cm, the gripper opens 20 cm."""
+MIN_EXTENT = 0.005
+MIN_GRASPS = 8
+"""An object needs at least this many verified grasps (the oracle and the labels draw from them)."""
+MAX_FACES = 200_000
+
+
+@dataclass(frozen=True)
+class ImportConfig:
+    """Settings of one import (every field is recorded in the manifest)."""
+
+    scale: float | None = None
+    size: float | None = None
+    density: float = 700.0
+    mass: float | None = None
+    color: tuple[float, float, float] = (0.7, 0.55, 0.35)
+    hulls: int = 8
+    coacd_threshold: float = 0.05
+    seed: int = 0
+    verify: int = 160
+    sampling: SamplingConfig = field(default_factory=SamplingConfig)
+    licence: str = "unknown"
+    source_note: str = ""
+
+    def __post_init__(self) -> None:
+        if self.scale is not None and self.size is not None:
+            raise ObjectError("give --scale or --size, not both")
+        for key in ("scale", "size", "mass"):
+            v = getattr(self, key)
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ObjectError(f"--{key} must be a positive number, got {v}")
+        if not (np.isfinite(self.density) and self.density > 0):
+            raise ObjectError(f"--density must be positive, got {self.density}")
+        if len(self.color) != 3 or not all(0.0 <= c <= 1.0 for c in self.color):
+            raise ObjectError(f"--color needs three numbers in [0, 1], got {self.color}")
+        if self.hulls < 1 or self.verify < MIN_GRASPS:
+            raise ObjectError(f"--hulls must be ≥ 1 and --verify ≥ {MIN_GRASPS}")
+
+
+def _read(path: Path) -> trimesh.Trimesh:
+    if not path.is_file():
+        raise ObjectError(f"{path}: no such file")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except Exception as e:  # trimesh raises many types on a bad file
+        raise ObjectError(f"{path}: unreadable mesh ({type(e).__name__}: {e})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise ObjectError(f"{path}: the file holds no triangles")
+    return loaded
+
+
+def repair_mesh(mesh: trimesh.Trimesh, origin: str = "mesh") -> trimesh.Trimesh:
+    """A watertight copy of ``mesh``: seams merged, degenerate and duplicate faces dropped, winding and normals
+    made consistent, small holes filled. ``ObjectError`` (naming ``origin``) when it is empty, not finite, or
+    still open afterwards."""
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise ObjectError(f"{origin}: non-finite vertex coordinates")
+    if len(mesh.faces) > MAX_FACES:
+        raise ObjectError(f"{origin}: {len(mesh.faces)} faces, more than {MAX_FACES}; decimate it first")
+    m = trimesh.Trimesh(mesh.vertices.copy(), mesh.faces.copy(), process=True)  # merges duplicate vertices
+    m.merge_vertices(merge_tex=True, merge_norm=True)
+    m.update_faces(m.nondegenerate_faces())
+    m.update_faces(m.unique_faces())
+    m.remove_unreferenced_vertices()
+    if len(m.faces) < 4:
+        raise ObjectError(f"{origin}: empty mesh after removing degenerate faces")
+    trimesh.repair.fix_winding(m)
+    trimesh.repair.fill_holes(m)
+    trimesh.repair.fix_normals(m)
+    if not m.is_watertight:
+        open_edges = len(trimesh.grouping.group_rows(m.edges_sorted, require_count=1))
+        raise ObjectError(f"{origin}: not a closed surface after repair ({open_edges} open edges); "
+                          "close the holes in a mesh editor")
+    if m.volume <= 0:
+        raise ObjectError(f"{origin}: the repaired surface encloses no volume")
+    return m
+
+
+def _decompose(mesh: trimesh.Trimesh, config: ImportConfig, cache: Path) -> list[trimesh.Trimesh]:
+    """CoACD's convex pieces of ``mesh``, cached under ``cache`` by the mesh's and the settings' hash."""
+    import coacd
+
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
+    h.update(json.dumps([config.hulls, config.coacd_threshold, config.seed, coacd.__name__]).encode())
+    path = cache / f"{h.hexdigest()}.npz"
+    if path.is_file():
+        with np.load(path) as z:
+            n = int(z["count"])
+            return [trimesh.Trimesh(z[f"v{k}"], z[f"f{k}"], process=False) for k in range(n)]
+    coacd.set_log_level("error")
+    try:
+        parts = coacd.run_coacd(coacd.Mesh(mesh.vertices, mesh.faces), threshold=config.coacd_threshold,
+                                max_convex_hull=config.hulls, seed=config.seed, resolution=1000,
+                                preprocess_resolution=30, mcts_iterations=60)
+    except Exception as e:  # CoACD raises RuntimeError and others from C++
+        raise ObjectError(f"CoACD decomposition failed ({type(e).__name__}: {e})") from None
+    hulls = []
+    for v, f in parts:
+        hull = trimesh.Trimesh(np.asarray(v), np.asarray(f), process=True).convex_hull
+        if len(hull.faces) >= 4 and hull.volume > 1e-9:
+            hulls.append(hull)
+    if not hulls:
+        raise ObjectError("CoACD decomposition gave no usable convex piece")
+    cache.mkdir(parents=True, exist_ok=True)
+    arrays = {"count": np.array(len(hulls))}
+    for k, hull in enumerate(hulls):
+        arrays[f"v{k}"], arrays[f"f{k}"] = hull.vertices, hull.faces
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, **arrays)
+    tmp.replace(path)
+    return hulls
+
+
+def _rest_poses(mesh: trimesh.Trimesh, seed: int) -> list[dict]:
+    """The likely resting orientations (probability ≥ 2 %, at most 8, renormalised) as rotations."""
+    transforms, probs = trimesh.poses.compute_stable_poses(mesh, n_samples=1, threshold=0.0, sigma=0.0)
+    order = np.argsort(-np.asarray(probs))
+    keep = [i for i in order if probs[i] >= 0.02][:8] or [int(order[0])]
+    total = float(sum(probs[i] for i in keep))
+    return [{"R": np.asarray(transforms[i])[:3, :3].round(9).tolist(), "probability": float(probs[i]) / total}
+            for i in keep]
+
+
+def _write_manifest(folder: Path, manifest: dict) -> None:
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+
+
+def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig(), root: Path | None = None,
+                overwrite: bool = False, preview: bool = True) -> Path:
+    """Import the mesh file ``path`` as object ``name`` into ``root`` (default the user's library); returns
+    the new object folder. The steps are in the module doc."""
+    from kgn_bench.sim.grasp_verify import verify_grasps
+
+    path = Path(path)
+    t0 = time.perf_counter()
+    if not NAME_PATTERN.match(name):
+        raise ObjectError(f"object name {name!r}: use lower-case letters, digits, '_' and '-' (≤ 63 characters)")
+    if name in OBJECTS:
+        raise ObjectError(f"object name {name!r} is a built-in object type; choose another")
+    root = Path(root) if root is not None else user_root()
+    target = root / name
+    if (target / MANIFEST).exists() and not overwrite:
+        raise ObjectError(f"object {name!r} already exists in {root} (pass --overwrite to replace it)")
+    source_bytes = path.read_bytes() if path.is_file() else b""
+    mesh = repair_mesh(_read(path), str(path))
+    scale = config.scale if config.scale is not None else (config.size / float(mesh.extents.max())
+                                                           if config.size is not None else 1.0)
+    mesh.apply_scale(scale)
+    ext = mesh.extents
+    if ext.max() > MAX_EXTENT:
+        raise ObjectError(f"{path}: {ext.max():.3f} m across after scaling, more than the workspace's "
+                          f"{MAX_EXTENT} m (pass --scale or --size)")
+    if ext.min() < MIN_EXTENT:
+        raise ObjectError(f"{path}: only {ext.min() * 1000:.1f} mm thick after scaling (at least "
+                          f"{MIN_EXTENT * 1000:.0f} mm)")
+    mesh.apply_translation(-mesh.center_mass)
+    rng = np.random.default_rng(config.seed)
+    hulls = _decompose(mesh, config, root / ".cache" / "coacd")
+    t_decomp = time.perf_counter() - t0
+    poses, widths = sample_antipodal_grasps(mesh, rng, config.sampling)
+    if len(poses) == 0:
+        raise ObjectError(f"{path}: no antipodal grasp the gripper can span (nothing between 4 mm and the "
+                          "20 cm opening with both contacts inside the friction cone)")
+    candidates = len(poses)
+    if len(poses) > config.verify:
+        pick = np.sort(rng.choice(len(poses), config.verify, replace=False))
+        poses, widths = poses[pick], widths[pick]
+    volume = float(mesh.volume)
+    mass = config.mass if config.mass is not None else config.density * volume
+    root.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=root))
+    try:
+        mesh.export(tmp / "visual.ply")
+        (tmp / "collision").mkdir()
+        for k, hull in enumerate(hulls):
+            hull.export(tmp / "collision" / f"hull_{k:02d}.ply")
+        manifest = {
+            "version": MANIFEST_VERSION, "name": name, "source": path.name,
+            "source_sha256": hashlib.sha256(source_bytes).hexdigest(), "licence": config.licence,
+            "source_note": config.source_note, "scale": scale, "extents_m": ext.round(6).tolist(),
+            "faces": len(mesh.faces), "volume": volume, "mass": float(mass),
+            "density": float(mass / volume), "color": list(config.color), "hulls": len(hulls),
+            "rest_poses": _rest_poses(mesh, config.seed),
+            "import": {k: v for k, v in asdict(config).items() if k not in ("licence", "source_note")},
+        }
+        _write_manifest(tmp, manifest)
+        np.savez(tmp / "grasps.npz", poses=np.zeros((0, 4, 4)), widths=np.zeros(0))
+        shape = MeshObject(tmp)
+        t1 = time.perf_counter()
+        held = verify_grasps(shape, poses, widths)
+        t_verify = time.perf_counter() - t1
+        if held.sum() < MIN_GRASPS:
+            raise ObjectError(f"{path}: only {int(held.sum())} of {len(poses)} checked grasps held in physics "
+                              f"(at least {MIN_GRASPS} needed)")
+        np.savez(tmp / "grasps.npz", poses=poses[held], widths=widths[held])
+        manifest["grasps"] = {"candidates": candidates, "checked": len(poses), "held": int(held.sum())}
+        manifest["timing_s"] = {"decompose": round(t_decomp, 2), "verify": round(t_verify, 2),
+                                "total": round(time.perf_counter() - t0, 2)}
+        _write_manifest(tmp, manifest)
+        if preview:
+            from kgn_bench.viz.objects import draw_object
+
+            draw_object(MeshObject(tmp), tmp / "preview.png")
+        if target.exists():
+            shutil.rmtree(target)
+        tmp.rename(target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return target

@@ -1,0 +1,129 @@
+"""Where imported objects live, and how a task's object name finds its folder.
+
+An object is a folder ``<root>/<name>/`` (``shapes.mesh_object``). The roots are searched in order:
+
+1. the user's library: ``$KGN_BENCH_OBJECTS`` if set, else ``~/.local/share/kgn-bench/objects``
+   (``kgn-bench objects add`` and ``kgn-bench objects import-set`` write here);
+2. the objects bundled with the package (``assets/objects/``, installed as ``kgn_bench.assets``).
+
+A task names an object by its folder name, exactly as it names a primitive (``[objects] set = ["mug_scan"]``),
+or a whole packaged set by the set's name (``[objects] set = "pybullet_test"``, ``OBJECT_SETS``); the names of
+primitives and household objects cannot be reused.
+
+The real-object set's split is defined here, so that a task can name it before it is imported:
+``pybullet_data/random_urdfs`` has 1000 objects and pybullet's own grasping environment tests on the 100 whose
+number ends in 0; ``pybullet_test`` is ``PYBULLET_TEST_COUNT`` of those, drawn with
+``default_rng(PYBULLET_SPLIT_SEED)`` and sorted, plus the duck, mug and teddy (``objects.pybullet_set`` imports
+them).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from kgn_bench.resources import _package_dir
+from kgn_bench.shapes.mesh_object import MANIFEST, MeshObject, ObjectError
+
+__all__ = [
+    "ENV_VAR",
+    "NAME_PATTERN",
+    "OBJECT_SETS",
+    "PYBULLET_EXTRAS",
+    "PYBULLET_SPLIT_SEED",
+    "PYBULLET_TEST_COUNT",
+    "find_object",
+    "library_roots",
+    "list_objects",
+    "load_object",
+    "packaged",
+    "pybullet_numbers",
+    "set_names",
+    "user_root",
+]
+
+ENV_VAR = "KGN_BENCH_OBJECTS"
+NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_\-]{0,62}$")
+"""Object names: lower-case letters, digits, '_' and '-', at most 63 characters (they become folder names)."""
+
+
+def user_root() -> Path:
+    """The user's object library (created on first import)."""
+    env = os.environ.get(ENV_VAR)
+    return Path(env).expanduser() if env else Path.home() / ".local" / "share" / "kgn-bench" / "objects"
+
+
+def library_roots() -> list[Path]:
+    """The object roots in search order: the user's library, then the bundled objects."""
+    return [user_root(), _package_dir("kgn_bench.assets") / "objects"]
+
+
+def list_objects() -> dict[str, Path]:
+    """Every object folder by name (the first root that holds a name wins)."""
+    found: dict[str, Path] = {}
+    for root in library_roots():
+        if root.is_dir():
+            for manifest in sorted(root.glob(f"*/{MANIFEST}")):
+                if NAME_PATTERN.match(manifest.parent.name):  # not temporary folders of an import
+                    found.setdefault(manifest.parent.name, manifest.parent)
+    return found
+
+
+def find_object(name: str) -> Path | None:
+    """The folder of object ``name``, or None."""
+    for root in library_roots():
+        folder = root / name
+        if (folder / MANIFEST).is_file():
+            return folder
+    return None
+
+
+@lru_cache(maxsize=256)
+def _load(folder: Path, stamp: float) -> MeshObject:
+    return MeshObject(folder)
+
+
+def load_object(name: str) -> MeshObject:
+    """The imported object ``name`` (cached per process while its manifest is unchanged)."""
+    folder = find_object(name)
+    if folder is None:
+        raise ObjectError(f"unknown object {name!r}: no folder {name}/ in {', '.join(map(str, library_roots()))}")
+    return _load(folder, (folder / MANIFEST).stat().st_mtime)
+
+
+PYBULLET_SPLIT_SEED = 0
+PYBULLET_TEST_COUNT = 40
+PYBULLET_EXTRAS = ("pb_duck", "pb_mug", "pb_teddy")
+OBJECT_SETS = ("pybullet_test", "pybullet_train")
+
+
+def pybullet_numbers(split: str) -> list[int]:
+    """The ``random_urdfs`` numbers of a split of the real-object set ("test" or "train"; module doc)."""
+    if split == "test":
+        pool = [n for n in range(1000) if n % 10 == 0]
+        return sorted(np.random.default_rng(PYBULLET_SPLIT_SEED).choice(pool, PYBULLET_TEST_COUNT, replace=False)
+                      .tolist())
+    if split == "train":
+        return [n for n in range(1000) if n % 10 != 0]
+    raise ObjectError(f"unknown split {split!r} of the pybullet set (test, train)")
+
+
+def set_names(set_name: str) -> list[str]:
+    """The object names of a packaged set (``OBJECT_SETS``), imported or not."""
+    if set_name not in OBJECT_SETS:
+        raise ObjectError(f"unknown object set {set_name!r} (known: {', '.join(OBJECT_SETS)})")
+    split = set_name.removeprefix("pybullet_")
+    names = [f"pb_{n:03d}" for n in pybullet_numbers(split)]
+    return names + list(PYBULLET_EXTRAS) if split == "test" else names
+
+
+def packaged(name: str) -> bool:
+    """Whether ``name`` belongs to a packaged set (so that it can be imported on demand)."""
+    if name in PYBULLET_EXTRAS:
+        return True
+    m = re.fullmatch(r"pb_(\d{3})", name)
+    return m is not None

@@ -1,0 +1,54 @@
+"""Antipodal candidates on meshes: the contacts, closing axes and widths on shapes whose answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from kgn_bench.gripper import GRIPPER
+from kgn_bench.shapes.grasp_sampling import SamplingConfig, antipodal_pairs, sample_antipodal_grasps
+from kgn_bench.shapes.household import PINCH_CLEARANCE
+
+
+def test_box_pairs_close_across_faces():
+    box = trimesh.creation.box((0.04, 0.06, 0.10))
+    p, q = antipodal_pairs(box, np.random.default_rng(0), SamplingConfig(points=300))
+    assert len(p) > 200  # every point of a box face has its opposite face straight behind it
+    axis = (q - p) / np.linalg.norm(q - p, axis=1, keepdims=True)
+    assert np.allclose(np.abs(axis).max(axis=1), 1.0, atol=1e-6)  # along a box axis
+    extents = np.sort(np.unique(np.linalg.norm(q - p, axis=1).round(4)))
+    assert np.allclose(extents, [0.04, 0.06, 0.10])
+
+
+def test_grasps_are_valid_frames_with_their_width():
+    box = trimesh.creation.box((0.04, 0.06, 0.10))
+    poses, widths = sample_antipodal_grasps(box, np.random.default_rng(1), SamplingConfig(points=200))
+    assert len(poses) > 0
+    R = poses[:, :3, :3]
+    assert np.allclose(np.einsum("nji,njk->nik", R, R), np.eye(3), atol=1e-9)
+    assert np.allclose(np.linalg.det(R), 1.0)
+    assert np.all(widths <= GRIPPER.max_width) and np.all(widths >= 0.04 + PINCH_CLEARANCE - 1e-6)
+    along_closing = np.einsum("ni,ni->n", poses[:, :3, 3], poses[:, :3, 2])
+    assert np.allclose(along_closing, 0.0, atol=1e-9)  # the contact midpoint: halfway between opposite faces
+
+
+def test_gripper_sweep_keeps_the_palm_off_the_object():
+    """A 12 cm cube, wider than the 7 cm fingers are long: many approaches would put the palm (its box at
+    the grasp, ``GRIPPER.palm_box``) into the cube. Those are dropped; no kept grasp has a point of its palm
+    more than 2 mm (the surface sampling's spacing) inside the cube."""
+    cube = trimesh.creation.box((0.12, 0.12, 0.12))
+    config = SamplingConfig(points=150, approaches=12)
+    p, _ = antipodal_pairs(cube, np.random.default_rng(2), config)
+    poses, _ = sample_antipodal_grasps(cube, np.random.default_rng(2), config)
+    assert 0 < len(poses) < 0.9 * len(p) * config.approaches
+    palm = GRIPPER.palm_box()
+    grid = np.stack(np.meshgrid(*[np.linspace(-1, 1, 7)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    local = palm.centre + grid * palm.half
+    world = np.einsum("nij,pj->npi", poses[:, :3, :3], local) + poses[:, None, :3, 3]
+    assert np.all(np.abs(world).max(axis=2) > 0.06 - 0.002)
+
+
+def test_nothing_to_span():
+    big = trimesh.creation.box((0.3, 0.3, 0.3))  # 30 cm everywhere: wider than the 20 cm opening
+    poses, widths = sample_antipodal_grasps(big, np.random.default_rng(0), SamplingConfig(points=100))
+    assert len(poses) == 0 and len(widths) == 0

@@ -1,0 +1,111 @@
+"""`objects add`: a mesh file becomes an object folder; a bad mesh is refused in one line and writes nothing."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from conftest import FAST_IMPORT
+
+from kgn_bench.objects.importer import ImportConfig, import_mesh, repair_mesh
+from kgn_bench.shapes.grasp_sampling import SamplingConfig
+from kgn_bench.shapes.mesh_object import MeshObject, ObjectError
+
+FAST = ImportConfig(**FAST_IMPORT, sampling=SamplingConfig(points=150))
+
+
+def _objects(root):
+    return sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
+
+
+def test_imported_block_folder(object_library):
+    folder = object_library / "test_block"
+    manifest = json.loads((folder / "object.json").read_text())
+    assert manifest["name"] == "test_block" and manifest["faces"] == 12
+    assert np.allclose(sorted(manifest["extents_m"]), [0.04, 0.06, 0.10], atol=1e-6)
+    assert manifest["mass"] == pytest.approx(700.0 * 0.04 * 0.06 * 0.10)
+    assert 1 <= manifest["hulls"] <= 2
+    assert manifest["grasps"]["held"] >= 8 and (folder / "preview.png").stat().st_size > 10_000
+    shape = MeshObject(folder)
+    assert np.allclose(shape.mesh().center_mass, 0.0, atol=1e-9)  # the object frame sits at the centre of mass
+    assert sum(p["probability"] for p in manifest["rest_poses"]) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("ext", ["obj", "ply", "glb"])
+def test_formats_and_size_option(tmp_path, ext):
+    path = tmp_path / f"tin.{ext}"
+    trimesh.creation.cylinder(radius=30.0, height=100.0, sections=24).export(path)  # millimetres
+    folder = import_mesh(path, "tin", ImportConfig(**FAST_IMPORT, size=0.10, sampling=SamplingConfig(points=150)),
+                         root=tmp_path / "lib", preview=False)
+    m = json.loads((folder / "object.json").read_text())
+    assert max(m["extents_m"]) == pytest.approx(0.10) and m["scale"] == pytest.approx(0.001)
+
+
+def test_repair_merges_seams_and_fills_a_hole():
+    box = trimesh.creation.box((0.05, 0.05, 0.05))
+    split = trimesh.Trimesh(box.vertices[box.faces].reshape(-1, 3), np.arange(36).reshape(12, 3), process=False)
+    holed = trimesh.Trimesh(split.vertices, split.faces[1:], process=False)  # one triangle missing, seams open
+    assert not holed.is_watertight
+    fixed = repair_mesh(holed)
+    assert fixed.is_watertight and fixed.volume == pytest.approx(0.05**3)
+
+
+def _open_tube():
+    """A cylinder without its caps: two 24-edge holes, too large to fill."""
+    c = trimesh.creation.cylinder(radius=0.03, height=0.08, sections=24)
+    side = np.abs(c.face_normals[:, 2]) < 0.5
+    return trimesh.Trimesh(c.vertices, c.faces[side])
+
+
+@pytest.mark.parametrize("mesh, config, reason", [
+    (None, FAST, "holds no triangles"),
+    ("nan", FAST, "non-finite"),
+    ("sheet", FAST, "not a closed surface"),
+    (trimesh.creation.box((0.5, 0.1, 0.1)), FAST, "more than the workspace"),
+    (trimesh.creation.box((0.1, 0.1, 0.002)), FAST, "thick"),
+    (trimesh.creation.box((0.25, 0.25, 0.25)), FAST, "no antipodal grasp"),
+])
+def test_bad_meshes_are_refused_and_write_nothing(tmp_path, mesh, config, reason):
+    path = tmp_path / "bad.obj"
+    if mesh is None:
+        path.write_text("this is not a mesh\n")
+    elif mesh == "nan":
+        box = trimesh.creation.box((0.05, 0.05, 0.05))
+        v = box.vertices.copy()
+        v[0, 0] = np.nan
+        trimesh.Trimesh(v, box.faces, process=False).export(path)
+    elif mesh == "sheet":
+        _open_tube().export(path)
+    else:
+        mesh.export(path)
+    root = tmp_path / "lib"
+    with pytest.raises(ObjectError, match=reason) as e:
+        import_mesh(path, "bad", config, root=root)
+    assert "\n" not in str(e.value)
+    assert not root.exists() or _objects(root) == []
+
+
+def test_names_are_checked(tmp_path, object_library):
+    path = tmp_path / "b.stl"
+    trimesh.creation.box((0.04, 0.04, 0.04)).export(path)
+    with pytest.raises(ObjectError, match="built-in"):
+        import_mesh(path, "mug", FAST, root=tmp_path / "lib")
+    with pytest.raises(ObjectError, match="lower-case"):
+        import_mesh(path, "My Mesh", FAST, root=tmp_path / "lib")
+    with pytest.raises(ObjectError, match="already exists"):
+        import_mesh(path, "test_block", FAST, root=object_library)
+
+
+def test_decomposition_is_cached(tmp_path):
+    path = tmp_path / "bar.stl"
+    trimesh.creation.box((0.08, 0.02, 0.03)).export(path)
+    root = tmp_path / "lib"
+    import_mesh(path, "a", FAST, root=root, preview=False)
+    cached = list((root / ".cache" / "coacd").glob("*.npz"))
+    assert len(cached) == 1
+    stamp = cached[0].stat().st_mtime_ns
+    import_mesh(path, "b", FAST, root=root, preview=False)
+    assert [p.stat().st_mtime_ns for p in (root / ".cache" / "coacd").glob("*.npz")] == [stamp]
+    assert _objects(root) == ["a", "b"]

@@ -1,0 +1,61 @@
+"""Where object folders are found, how tasks name imported objects and packaged sets."""
+
+from __future__ import annotations
+
+import pytest
+
+from kgn_bench.config import ConfigError, load_task
+from kgn_bench.shapes import is_known, known_names, sample_shape
+from kgn_bench.shapes.library import (
+    PYBULLET_EXTRAS,
+    find_object,
+    list_objects,
+    load_object,
+    packaged,
+    pybullet_numbers,
+    set_names,
+)
+from kgn_bench.shapes.mesh_object import ObjectError
+
+
+def test_imported_objects_are_found(object_library):
+    assert find_object("test_block") == object_library / "test_block"
+    assert "test_block" in list_objects() and "test_block" in known_names() and is_known("test_block")
+    assert load_object("test_block") is load_object("test_block")  # cached per process
+    assert sample_shape("test_block", None).name == "test_block"
+    with pytest.raises(ObjectError, match="unknown object 'nope'"):
+        load_object("nope")
+
+
+def test_the_real_object_split():
+    test, train = pybullet_numbers("test"), pybullet_numbers("train")
+    assert len(test) == 40 and len(set(test)) == 40 and all(n % 10 == 0 for n in test)
+    assert len(train) == 900 and not set(test) & set(train)
+    assert test == sorted(test) and pybullet_numbers("test") == test  # seeded: the same every time
+    names = set_names("pybullet_test")
+    assert len(names) == 43 and names[-3:] == list(PYBULLET_EXTRAS)
+    assert packaged("pb_120") and packaged("pb_duck") and not packaged("pb_12") and not packaged("mug")
+    with pytest.raises(ObjectError, match="unknown object set"):
+        set_names("ycb")
+
+
+@pytest.fixture
+def load_task_text(tmp_path):
+    def load(text: str):
+        path = tmp_path / "t.toml"
+        path.write_text(text)
+        return load_task(path)
+    return load
+
+
+def _task(objects: str) -> str:
+    return f'[task]\nname = "t"\nprotocol = "single_object"\n[objects]\nset = {objects}\n'
+
+
+def test_tasks_name_imported_objects_and_sets(object_library, load_task_text):
+    assert load_task_text(_task('["test_block", "cuboid"]')).objects == ("test_block", "cuboid")
+    assert len(load_task_text(_task('"pybullet_test"')).objects) == 43  # imported on first use by the runner
+    with pytest.raises(ConfigError, match=r"unknown object .teapot.*objects add"):
+        load_task_text(_task('["teapot"]'))
+    with pytest.raises(ConfigError, match="unknown object set 'ycb'"):
+        load_task_text(_task('"ycb"'))
