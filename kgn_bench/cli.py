@@ -428,6 +428,22 @@ def _cmd_objects_import_set(args) -> int:
     return 0
 
 
+def _cmd_objects_check_labeller(args) -> int:
+    import json
+
+    from kgn_bench.io import atomic_write_text, check_writable_dir
+    from kgn_bench.objects.labeller_check import check_labeller, format_table, to_json
+
+    check_writable_dir(args.out)
+    results = check_labeller(args.shapes, seed=args.seed, verify=args.verify, control=args.control, out=args.out)
+    table = format_table(results)
+    atomic_write_text(args.out / "agreement.md", table)
+    atomic_write_text(args.out / "agreement.json", json.dumps(to_json(results), indent=1) + "\n")
+    print(table)
+    print(f"wrote {args.out}/agreement.md, agreement.json and one PNG per shape")
+    return 0
+
+
 # -- the parser: parent parsers hold the options several commands share ------------------------------------
 def _parent(*adders) -> argparse.ArgumentParser:
     parent = _Parser(add_help=False)
@@ -671,6 +687,13 @@ def _add_objects(sub) -> None:
     iset.add_argument("--split", choices=("test", "train"), default="test",
                       help="test: 40 of pybullet's test objects + duck, mug, teddy (default); train: 900")
     iset.set_defaults(func=_cmd_objects_import_set)
+    chk = osub.add_parser("check-labeller", help="the mesh labeller against the primitives' closed-form grasps")
+    chk.add_argument("--out", type=Path, default=Path("results/labeller"), help="folder for the table and PNGs")
+    chk.add_argument("--shapes", nargs="+", help="primitives to check (default all)")
+    chk.add_argument("--verify", type=_int_at_least(8), default=400, help="labeller candidates checked (400)")
+    chk.add_argument("--control", type=_int_at_least(0), default=100, help="random control grasps (100)")
+    chk.add_argument("--seed", type=_int_at_least(0), default=0)
+    chk.set_defaults(func=_cmd_objects_check_labeller)
 
 
 def build_parser() -> argparse.ArgumentParser:

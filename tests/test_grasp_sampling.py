@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import trimesh
 
+from kgn_bench.geometry import frame_from_xz, make_pose, rot_x
 from kgn_bench.gripper import GRIPPER
-from kgn_bench.shapes.grasp_sampling import SamplingConfig, antipodal_pairs, sample_antipodal_grasps
+from kgn_bench.shapes.grasp_sampling import SamplingConfig, antipodal_accepts, antipodal_pairs, sample_antipodal_grasps
 from kgn_bench.shapes.household import PINCH_CLEARANCE
 
 
@@ -52,3 +54,29 @@ def test_nothing_to_span():
     big = trimesh.creation.box((0.3, 0.3, 0.3))  # 30 cm everywhere: wider than the 20 cm opening
     poses, widths = sample_antipodal_grasps(big, np.random.default_rng(0), SamplingConfig(points=100))
     assert len(poses) == 0 and len(widths) == 0
+
+
+def test_a_hollow_box_is_spanned_across_its_cavity():
+    """A closed 6 cm box shell with 3 mm walls: the first exit of an inward ray is 3 mm away (a wall, too
+    thin to pinch at 4 mm), the later exit across the cavity gives the 6 cm grasp."""
+    outer, inner = trimesh.creation.box((0.06, 0.06, 0.06)), trimesh.creation.box((0.054, 0.054, 0.054))
+    inner.invert()
+    shell = trimesh.util.concatenate([outer, inner])
+    p, q = antipodal_pairs(shell, np.random.default_rng(3), SamplingConfig(points=200))
+    assert len(p) > 0
+    assert np.allclose(np.linalg.norm(q - p, axis=1), 0.06, atol=1e-6)
+
+
+def test_the_labellers_test_on_given_grasps():
+    """``antipodal_accepts`` passes a grasp across a box and gives it the labeller's width; a grasp whose
+    closing axis is 30° off the face normals, one beside the box and one closing on a 30 cm side fail."""
+    box = trimesh.creation.box((0.04, 0.06, 0.10))
+    across = make_pose(frame_from_xz(np.array([0.0, 0.0, -1.0]), np.array([1.0, 0.0, 0.0])), np.zeros(3))
+    tilted = make_pose(across[:3, :3] @ rot_x(np.deg2rad(30.0)), np.zeros(3))
+    beside = make_pose(across[:3, :3], np.array([0.0, 0.15, 0.0]))
+    ok, widths = antipodal_accepts(box, np.stack([across, tilted, beside]), np.full(3, 0.06))
+    assert ok.tolist() == [True, False, False]
+    assert widths[0] == pytest.approx(0.04 + PINCH_CLEARANCE)
+    big = trimesh.creation.box((0.3, 0.05, 0.05))
+    ok, _ = antipodal_accepts(big, across[None], np.array([GRIPPER.max_width]))
+    assert not ok[0]

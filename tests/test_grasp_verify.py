@@ -48,3 +48,14 @@ def test_harder_shaking_drops_the_marginal_grasp():
     assert verify_grasps(shape, poses, widths, harsh).tolist() == [True, True, False]
     brutal = ShakeTest(shake_m=0.1, shake_deg=60.0, shake_period_s=0.1)
     assert not verify_grasps(shape, poses, widths, brutal).any()
+
+
+def test_a_gripper_that_starts_inside_the_object_fails():
+    """A cuboid grasp pushed 6 cm deeper along its approach puts the palm 1 cm into the box: refused before
+    closing. Allowing 10 cm of overlap, MuJoCo pushes the overlap apart into a wedge that "holds"."""
+    shape = _cuboid()
+    g = shape.grasps(EVAL_DENSITY)
+    deep = g.poses[:1] @ make_pose(t=np.array([0.06, 0.0, 0.0]))
+    assert not verify_grasps(shape, deep, g.widths[:1])[0]
+    lax = ShakeTest(max_start_penetration=0.1)
+    assert verify_grasps(shape, deep, g.widths[:1], lax)[0]

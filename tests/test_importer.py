@@ -52,17 +52,38 @@ def test_repair_merges_seams_and_fills_a_hole():
     assert fixed.is_watertight and fixed.volume == pytest.approx(0.05**3)
 
 
-def _open_tube():
-    """A cylinder without its caps: two 24-edge holes, too large to fill."""
+def test_repair_caps_an_open_tube():
+    """A cylinder without its caps has two 24-edge holes, beyond trimesh's ``fill_holes``; each is capped."""
     c = trimesh.creation.cylinder(radius=0.03, height=0.08, sections=24)
     side = np.abs(c.face_normals[:, 2]) < 0.5
-    return trimesh.Trimesh(c.vertices, c.faces[side])
+    tube = trimesh.Trimesh(c.vertices, c.faces[side])
+    assert not tube.is_watertight
+    fixed = repair_mesh(tube)
+    assert fixed.is_watertight and fixed.volume == pytest.approx(c.volume, rel=1e-9)
+
+
+def test_repair_unites_overlapping_parts():
+    """Two 4 cm cubes overlapping by half: one solid of 6 × 4 × 4 cm, the shared half counted once."""
+    a, b = trimesh.creation.box((0.04, 0.04, 0.04)), trimesh.creation.box((0.04, 0.04, 0.04))
+    b.apply_translation((0.02, 0.0, 0.0))
+    both = trimesh.util.concatenate([a, b])
+    assert both.volume == pytest.approx(2 * 0.04**3)
+    fixed = repair_mesh(both)
+    assert len(fixed.split()) == 1 and fixed.volume == pytest.approx(0.06 * 0.04 * 0.04, rel=1e-6)
+
+
+def _finned_box():
+    """A closed box with one extra triangle on an edge: a non-manifold edge and an open fin, not a loop."""
+    box = trimesh.creation.box((0.05, 0.05, 0.05))
+    e = box.edges_unique[0]
+    tip = box.vertices[e].mean(axis=0) * 3.0
+    return trimesh.Trimesh(np.vstack([box.vertices, tip]), np.vstack([box.faces, [[e[0], e[1], 8]]]), process=False)
 
 
 @pytest.mark.parametrize("mesh, config, reason", [
     (None, FAST, "holds no triangles"),
     ("nan", FAST, "non-finite"),
-    ("sheet", FAST, "not a closed surface"),
+    ("fin", FAST, "not a closed surface"),
     (trimesh.creation.box((0.5, 0.1, 0.1)), FAST, "more than the workspace"),
     (trimesh.creation.box((0.1, 0.1, 0.002)), FAST, "thick"),
     (trimesh.creation.box((0.25, 0.25, 0.25)), FAST, "no antipodal grasp"),
@@ -76,8 +97,8 @@ def test_bad_meshes_are_refused_and_write_nothing(tmp_path, mesh, config, reason
         v = box.vertices.copy()
         v[0, 0] = np.nan
         trimesh.Trimesh(v, box.faces, process=False).export(path)
-    elif mesh == "sheet":
-        _open_tube().export(path)
+    elif mesh == "fin":
+        _finned_box().export(path)
     else:
         mesh.export(path)
     root = tmp_path / "lib"

@@ -4,7 +4,8 @@ The steps, each of which refuses a bad mesh with one ``ObjectError`` line and wr
 
 1. **read** OBJ, STL, PLY, GLB/GLTF (or anything else trimesh reads) as one mesh; a scene is concatenated;
 2. **repair**: merge seam vertices, drop degenerate and duplicate faces, fix winding and normals, fill small
-   holes; the result must be a watertight, finite, non-empty solid (the antipodal rays need an inside);
+   holes, cap larger open loops, unite overlapping parts; the result must be a watertight, finite, non-empty
+   solid (the antipodal rays need an inside);
 3. **scale** by ``scale`` or to ``size`` (the largest extent, m); the object frame's origin is moved to the
    centre of mass, the axes are kept;
 4. **check the size**: the largest extent at most ``MAX_EXTENT`` (what the table's workspace holds), the
@@ -92,10 +93,55 @@ def _read(path: Path) -> trimesh.Trimesh:
     return loaded
 
 
+def _cap_open_loops(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """``mesh`` with every boundary loop closed by a fan of triangles about the loop's centroid (a new vertex).
+
+    A boundary edge is one that a single face uses; followed in that face's direction the boundary edges form
+    loops. The cap triangle of edge (a, b) is (b, a, c), wound against the face that owns the edge, so the
+    cap's orientation agrees with the surface's. Enough for the holes meshes commonly have (a tube left open
+    where it meets a body, a missing lid) and what trimesh's ``fill_holes`` (triangles and quads only) leaves;
+    a loop through a vertex twice (a bow-tie) is left open."""
+    rows = trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)
+    if len(rows) == 0:
+        return mesh
+    edges = mesh.edges[rows]
+    following: dict[int, int] = {}
+    for a, b in edges.tolist():
+        if a in following:  # a bow-tie vertex: the loops through it are ambiguous
+            return mesh
+        following[a] = b
+    vertices, faces = [mesh.vertices], [mesh.faces]
+    n = len(mesh.vertices)
+    seen: set[int] = set()
+    for start in following:
+        if start in seen:
+            continue
+        loop, v = [], start
+        while v not in seen and v in following:
+            seen.add(v)
+            loop.append(v)
+            v = following[v]
+        if v != start or len(loop) < 3:
+            continue
+        vertices.append(mesh.vertices[loop].mean(axis=0, keepdims=True))
+        ring = np.asarray(loop)
+        faces.append(np.column_stack([np.roll(ring, -1), ring, np.full(len(ring), n)]))
+        n += 1
+    return trimesh.Trimesh(np.vstack(vertices), np.vstack(faces), process=True)
+
+
+def _defects(mesh: trimesh.Trimesh) -> str:
+    """The open and the non-manifold edges (used by more than two faces) of ``mesh``, in words."""
+    _, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    return f"{int((counts == 1).sum())} open edges, {int((counts > 2).sum())} edges shared by more than two faces"
+
+
 def repair_mesh(mesh: trimesh.Trimesh, origin: str = "mesh") -> trimesh.Trimesh:
-    """A watertight copy of ``mesh``: seams merged, degenerate and duplicate faces dropped, winding and normals
-    made consistent, small holes filled. ``ObjectError`` (naming ``origin``) when it is empty, not finite, or
-    still open afterwards."""
+    """A watertight copy of ``mesh``: seams merged, degenerate and duplicate faces dropped, winding made
+    consistent, small holes filled and larger boundary loops capped (``_cap_open_loops``), the connected parts
+    united into one solid (manifold3d, so parts that overlap or touch along an edge stop counting twice), and
+    the normals pointing out. ``ObjectError`` (naming ``origin``) when it is empty, not finite, or still not
+    closed afterwards."""
     if not np.all(np.isfinite(mesh.vertices)):
         raise ObjectError(f"{origin}: non-finite vertex coordinates")
     if len(mesh.faces) > MAX_FACES:
@@ -109,11 +155,21 @@ def repair_mesh(mesh: trimesh.Trimesh, origin: str = "mesh") -> trimesh.Trimesh:
         raise ObjectError(f"{origin}: empty mesh after removing degenerate faces")
     trimesh.repair.fix_winding(m)
     trimesh.repair.fill_holes(m)
+    if not m.is_watertight:
+        m = _cap_open_loops(m)
+    parts = m.split(only_watertight=False)
+    if len(parts) > 1 and all(p.is_watertight for p in parts):
+        for p in parts:
+            trimesh.repair.fix_normals(p)
+        try:
+            m = trimesh.boolean.union(parts, engine="manifold")
+        except Exception as e:  # manifold3d refuses what it cannot read as a solid
+            raise ObjectError(f"{origin}: its {len(parts)} parts cannot be united ({type(e).__name__}: {e})") \
+                from None
     trimesh.repair.fix_normals(m)
     if not m.is_watertight:
-        open_edges = len(trimesh.grouping.group_rows(m.edges_sorted, require_count=1))
-        raise ObjectError(f"{origin}: not a closed surface after repair ({open_edges} open edges); "
-                          "close the holes in a mesh editor")
+        raise ObjectError(f"{origin}: not a closed surface after repair ({_defects(m)}); "
+                          "close it in a mesh editor")
     if m.volume <= 0:
         raise ObjectError(f"{origin}: the repaired surface encloses no volume")
     return m

@@ -1,10 +1,12 @@
 """Antipodal grasp candidates on any mesh, before the physics check (``sim.grasp_verify``).
 
 For a surface point ``p`` with outward normal ``n_p``, the ray from ``p`` along ``−n_p`` leaves the solid at
-``q`` (outward normal ``n_q``). The pair is antipodal when the closing axis ``a = (q − p)/|q − p|`` lies in both
-friction cones: ``∠(−n_p, a) ≤ θ`` and ``∠(n_q, a) ≤ θ``, with half-angle ``θ = friction_cone_deg``
-(a margin under MuJoCo's ``atan μ`` = 45° for μ = 1). Its width is ``|q − p| + PINCH_CLEARANCE`` (the jaws
-open 7.5 mm clear of each contact), which must fit the gripper.
+one or more points ``q`` (outward normal ``n_q``, ``n_q · (−n_p) > 0``): the first exit pinches the wall at
+``p``, a later one spans the object across a hollow or a gap (the fingers touch only ``p`` and ``q``, and the
+sweep filter drops a finger that would have to pass through the object). The pair is antipodal when the
+closing axis ``a = (q − p)/|q − p|`` lies in both friction cones: ``∠(−n_p, a) ≤ θ`` and ``∠(n_q, a) ≤ θ``,
+with half-angle ``θ = friction_cone_deg`` (a margin under MuJoCo's ``atan μ`` = 45° for μ = 1). Its width is
+``|q − p| + PINCH_CLEARANCE`` (the jaws open 7.5 mm clear of each contact), which must fit the gripper.
 
 Each pair gives ``approaches`` grasps about its closing axis: the grasp origin at the contact midpoint
 ``c = (p + q)/2``, the closing axis ``z = a``, the approach ``x = cos β·u + sin β·(a × u)`` for evenly spaced
@@ -24,7 +26,7 @@ from kgn_bench.geometry import frame_from_xz
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.household import PINCH_CLEARANCE, gripper_sweep_free
 
-__all__ = ["SamplingConfig", "antipodal_pairs", "sample_antipodal_grasps"]
+__all__ = ["SamplingConfig", "antipodal_accepts", "antipodal_pairs", "sample_antipodal_grasps"]
 
 
 @dataclass(frozen=True)
@@ -44,9 +46,11 @@ def antipodal_pairs(mesh: trimesh.Trimesh, rng: np.random.Generator, config: Sam
     points, faces = trimesh.sample.sample_surface(mesh, config.points, seed=int(rng.integers(2**31)))
     normals = mesh.face_normals[faces]
     origins = points - 1e-5 * normals
-    hits, rays, tri = mesh.ray.intersects_location(origins, -normals, multiple_hits=False)
+    hits, rays, tri = mesh.ray.intersects_location(origins, -normals, multiple_hits=True)
     if len(rays) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3))
+    exits = np.einsum("ij,ij->i", mesh.face_normals[tri], -normals[rays]) > 0.0
+    hits, rays, tri = hits[exits], rays[exits], tri[exits]
     p, n_p = points[rays], normals[rays]
     q, n_q = hits, mesh.face_normals[tri]
     span = q - p
@@ -90,3 +94,39 @@ def sample_antipodal_grasps(mesh: trimesh.Trimesh, rng: np.random.Generator,
         surface = trimesh.sample.sample_surface(mesh, 4000, seed=int(rng.integers(2**31)))[0]
     keep = gripper_sweep_free(surface, poses, widths)
     return poses[keep], widths[keep]
+
+
+def antipodal_accepts(mesh: trimesh.Trimesh, poses: np.ndarray, widths: np.ndarray,
+                      config: SamplingConfig = SamplingConfig(), surface: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The labeller's geometric test applied to given grasps ``poses`` (N, 4, 4, object frame) of ``widths``:
+    each jaw, closing along the grasp's ``z`` through its origin from the executor's opening
+    ``GRIPPER.opening(w)``, first touches the surface at ``p`` (from ``−z``) and ``q`` (from ``+z``). The grasp
+    passes when both contacts exist, the pinched extent ``d = (q − p)·z`` is at least ``min_extent`` and its
+    width ``d + PINCH_CLEARANCE`` fits the gripper, both normals lie in the friction cone of the closing axis
+    (module doc), and the gripper sweep at that width is free. A candidate of ``sample_antipodal_grasps`` has
+    passed exactly this test, so it says whether the labeller would accept a grasp that came from elsewhere (a
+    closed-form family), and with what width. Returns ``(accepted (N,) bool, labeller widths (N,))``."""
+    n = len(poses)
+    if n == 0:
+        return np.zeros(0, dtype=bool), np.zeros(0)
+    z, c = poses[:, :3, 2], poses[:, :3, 3]
+    half = (np.asarray(GRIPPER.opening(np.asarray(widths, dtype=float))) / 2.0)[:, None]
+    found, points, normals = [], [], []
+    for sign in (-1.0, 1.0):  # the jaw at −z moves along +z, the one at +z along −z
+        hits, rays, tri = mesh.ray.intersects_location(c + sign * half * z, -sign * z, multiple_hits=False)
+        point, normal, hit = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, dtype=bool)
+        point[rays], normal[rays], hit[rays] = hits, mesh.face_normals[tri], True
+        found.append(hit)
+        points.append(point)
+        normals.append(normal)
+    d = np.einsum("ij,ij->i", points[1] - points[0], z)
+    labelled = d + PINCH_CLEARANCE
+    cos_t = np.cos(np.deg2rad(config.friction_cone_deg))
+    ok = (found[0] & found[1] & (d >= config.min_extent) & (labelled <= GRIPPER.max_width)
+          & (np.einsum("ij,ij->i", normals[0], -z) >= cos_t) & (np.einsum("ij,ij->i", normals[1], z) >= cos_t))
+    if surface is None:
+        surface = trimesh.sample.sample_surface(mesh, 4000, seed=0)[0]
+    if ok.any():
+        ok[ok] = gripper_sweep_free(surface, poses[ok], labelled[ok])
+    return ok, labelled

@@ -6,11 +6,14 @@ For each grasp ``T_obj_grasp`` (object frame; the object starts at the world ori
    mocap target (a weld, not a mocap parent: a teleported body has no velocity, so friction could not drag the
    object along), placed so that its TCP is at the grasp: ``T_world_hand = T_obj_grasp · Trans(−tcp_offset, 0, 0)``;
    the jaws start at the executor's opening ``GRIPPER.opening(width)``;
-2. **close** with gravity off, the servo commanded shut under its real force limit (``GRIPPER.grip_force``),
+2. a grasp whose open gripper already overlaps the object by more than ``max_start_penetration`` fails: the
+   arm reaches a grasp from its pre-grasp, so no real gripper gets there (and MuJoCo would push the overlap
+   apart into a wedge that holds);
+3. **close** with gravity off, the servo commanded shut under its real force limit (``GRIPPER.grip_force``),
    for ``close_s``; the grasp fails if the jaws close on nothing (opening < ``min_opening``);
-3. **hold**: gravity on, pulling along the grasp's approach axis ``+x`` (out of the fingers, as gravity pulls an
+4. **hold**: gravity on, pulling along the grasp's approach axis ``+x`` (out of the fingers, as gravity pulls an
    object lifted from a top-down grasp), for ``hold_s``;
-4. **shake**: the hand translates ``shake_m`` back and forth along each grasp axis and turns ``shake_deg`` back
+5. **shake**: the hand translates ``shake_m`` back and forth along each grasp axis and turns ``shake_deg`` back
    and forth about each, one ``shake_period_s`` cycle per axis, with gravity on.
 
 A grasp holds when the object's displacement relative to the hand stays under ``max_slip_m`` (the object
@@ -48,6 +51,7 @@ class ShakeTest:
     shake_period_s: float = 0.3
     min_opening: float = 0.002
     max_slip_m: float = 0.015
+    max_start_penetration: float = 0.001
 
 
 class _Rig:
@@ -74,6 +78,16 @@ class _Rig:
                                  for n in ("left_finger", "right_finger")])
         self.actuator = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "gripper/gripper")
         self.hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "gripper/hand")
+        self.object_geoms = set(np.flatnonzero(m.geom_bodyid == body).tolist())
+
+    def start_penetration(self) -> float:
+        """The deepest overlap (m, ≥ 0) between the object and anything else, after ``mj_forward``."""
+        d = self.data
+        depth = 0.0
+        for c in d.contact[: d.ncon]:
+            if (c.geom1 in self.object_geoms) != (c.geom2 in self.object_geoms):
+                depth = max(depth, -float(c.dist))
+        return depth
 
     def set_hand(self, T_world_hand: np.ndarray, teleport: bool = False) -> None:
         """Move the mocap target of the hand (the weld pulls the hand after it); ``teleport`` puts the hand
@@ -117,6 +131,8 @@ def _check_one(rig: _Rig, T_obj_grasp: np.ndarray, width: float, test: ShakeTest
     d.ctrl[rig.actuator] = half
     m.opt.gravity[:] = 0.0
     mujoco.mj_forward(m, d)
+    if rig.start_penetration() > test.max_start_penetration:
+        return False
     dt = m.opt.timestep
     # close: ramp the servo shut over half the closing time, then let it squeeze
     n_close = max(1, int(test.close_s / dt))
