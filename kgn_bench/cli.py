@@ -89,13 +89,33 @@ def _writable_file(path: Path, what: str) -> None:
     _writable(path.parent if str(path.parent) else Path("."), f"folder of {what}")
 
 
+def _object_names(items: list[str]) -> list[str]:
+    """Object names from the command line, a packaged set's name (``pybullet_test``) expanded to its objects;
+    the packaged ones the library lacks are imported first."""
+    from kgn_bench.objects.pybullet_set import ensure_objects
+    from kgn_bench.shapes import is_known
+    from kgn_bench.shapes.library import OBJECT_SETS, packaged, set_names
+
+    names: list[str] = []
+    for item in items:
+        names += set_names(item) if item in OBJECT_SETS else [item]
+    for n in names:
+        if not (is_known(n) or packaged(n)):
+            raise ValueError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
+                             "(kgn-bench objects list)")
+    ensure_objects(names)
+    return list(dict.fromkeys(names))
+
+
 def _cmd_data_generate(args) -> int:
     from kgn_bench.data.generate import GenerateConfig, generate_dataset
     from kgn_bench.sim.scene import PhysicsError
 
     backend = _backend(args)
     _writable(args.out)
-    config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed)
+    objects = _object_names(args.objects or [])
+    config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed,
+                            objects=tuple(objects))
     try:
         stats = generate_dataset(config, args.out, workers=args.workers, overwrite=args.overwrite,
                                  progress=not args.quiet, backend=backend)
@@ -522,6 +542,9 @@ def _add_data(sub) -> None:
     gen.add_argument("--seed", type=_int_at_least(0), default=0, help="dataset seed (default 0)")
     gen.add_argument("--out", type=Path, required=True, help="output folder")
     gen.add_argument("--overwrite", action="store_true", help="replace a dataset with other settings in --out")
+    gen.add_argument("--objects", nargs="+", metavar="NAME",
+                     help="object types or a set (pybullet_test) to draw from instead of the six primitives; "
+                          "multi mode puts six of them in each scene")
     gen.set_defaults(func=_cmd_data_generate)
     show = dsub.add_parser("show", help="draw a view's collision-free ground-truth grasps and its depth")
     show.add_argument("dir", type=Path, help="dataset folder")

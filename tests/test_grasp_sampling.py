@@ -57,9 +57,9 @@ def test_nothing_to_span():
 
 
 def test_a_hollow_box_is_spanned_across_its_cavity():
-    """A closed 6 cm box shell with 3 mm walls: the first exit of an inward ray is 3 mm away (a wall, too
-    thin to pinch at 4 mm), the later exit across the cavity gives the 6 cm grasp."""
-    outer, inner = trimesh.creation.box((0.06, 0.06, 0.06)), trimesh.creation.box((0.054, 0.054, 0.054))
+    """A closed 6 cm box shell with 2 mm walls: the first exit of an inward ray is 2 mm away (a wall thinner
+    than the 3 mm ``min_extent``), the later exit across the cavity gives the 6 cm grasp."""
+    outer, inner = trimesh.creation.box((0.06, 0.06, 0.06)), trimesh.creation.box((0.056, 0.056, 0.056))
     inner.invert()
     shell = trimesh.util.concatenate([outer, inner])
     p, q = antipodal_pairs(shell, np.random.default_rng(3), SamplingConfig(points=200))

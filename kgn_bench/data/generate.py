@@ -32,7 +32,7 @@ from kgn_bench.grasp import GraspSet
 from kgn_bench.io import atomic_write_text
 from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
-from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, shape_class, shape_from_dims
+from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, is_known, sample_shape, shape_from_dims
 from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics
 from kgn_bench.sim.collision import LABEL_VERSION, label_scene
 from kgn_bench.sim.placement import PlacementConfig, place_objects, rectify_axisymmetric, settle
@@ -56,6 +56,8 @@ __all__ = [
 MODES = ("single", "multi")
 TEST_FRACTION = 0.2
 MAX_SCENE_ATTEMPTS = 5
+MULTI_OBJECTS = 6
+"""Objects in a multi-object scene (the PS data's six primitives, one of each)."""
 TIMING_KEYS = ("settle", "annotate", "render", "write")
 
 
@@ -71,10 +73,19 @@ class GenerateConfig:
     cameras: CameraSampler = field(default_factory=CameraSampler)
     density: GraspDensity = TRAIN_DENSITY
     placement: PlacementConfig = field(default_factory=PlacementConfig)
+    objects: tuple[str, ...] = ()
+    """The object types scenes draw from; empty: the PS primitives (``PRIMITIVES``)."""
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        for name in self.objects:
+            if not is_known(name):
+                raise ValueError(f"unknown object {name!r}: neither built in nor imported (kgn-bench objects list)")
+
+    @property
+    def object_types(self) -> list[str]:
+        return list(self.objects) if self.objects else list(PRIMITIVES)
         if self.scenes < 1 or self.views < 1 or self.seed < 0:
             raise ValueError("scenes and views must be ≥ 1 and seed ≥ 0")
 
@@ -91,7 +102,7 @@ class GenerateConfig:
             "camera_elevation_deg": [float(np.rad2deg(a)) for a in self.cameras.elevation_range],
             "grasp_density": {"translations": self.density.translations, "angles": self.density.angles},
             "label_version": LABEL_VERSION,
-            "object_types": list(PRIMITIVES),
+            "object_types": self.object_types,
             "test_fraction": TEST_FRACTION,
         }
 
@@ -113,12 +124,16 @@ class GeneratedScene:
 
 
 def _sample_objects(config: GenerateConfig, rng: np.random.Generator) -> list[SceneObject]:
-    names = list(PRIMITIVES)
+    """One object (single mode), or ``MULTI_OBJECTS`` distinct ones in random order (multi mode: all six
+    primitives, or six of the given objects)."""
+    names = config.object_types
     if config.mode == "single":
         chosen = [names[rng.integers(len(names))]]
-    else:
+    elif len(names) <= MULTI_OBJECTS:
         chosen = [names[k] for k in rng.permutation(len(names))]
-    return [SceneObject(shape_class(n).sample(rng), tuple(float(c) for c in rng.uniform(0.0, 1.0, 3))) for n in chosen]
+    else:
+        chosen = [names[k] for k in rng.choice(len(names), MULTI_OBJECTS, replace=False)]
+    return [SceneObject(sample_shape(n, rng), tuple(float(c) for c in rng.uniform(0.0, 1.0, 3))) for n in chosen]
 
 
 def generate_scene(config: GenerateConfig, index: int) -> GeneratedScene:

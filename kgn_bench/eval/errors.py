@@ -38,7 +38,7 @@ from kgn_bench.io import atomic_write_text
 from kgn_bench.progress import Progress
 from kgn_bench.types import Candidates, Observation
 
-from .vision import SHAPES, THRESHOLDS, detector_call, iter_views, pose_errors
+from .vision import SHAPES, THRESHOLDS, detector_call, iter_views, pose_errors, shape_column
 
 __all__ = ["TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image", "markdown", "write_errors"]
 
@@ -113,7 +113,7 @@ def decompose_image(pred_world: np.ndarray, pred_widths: np.ndarray, gt: list[Gr
         np.degrees(d_r[np.arange(n), nearest]),
         100.0 * (pred_widths - grasps.widths[nearest]),
     ], axis=1)
-    return errors, matched, np.array([types[i] for i in owner[nearest]], dtype="<U16")
+    return errors, matched, np.array([shape_column(types[i]) for i in owner[nearest]], dtype="<U16")
 
 
 def decompose_dataset(detect: Callable[[Observation], Candidates], data_dir: Path, split: str = "test",

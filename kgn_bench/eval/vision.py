@@ -57,9 +57,10 @@ from kgn_bench.data.generate import relabel_grasps
 from kgn_bench.detectors.base import Candidates, Detector, Observation
 from kgn_bench.grasp import GraspSet, grasp_rotation_error
 from kgn_bench.progress import Progress
-from kgn_bench.shapes import EVAL_DENSITY, PRIMITIVES, GraspDensity
+from kgn_bench.shapes import EVAL_DENSITY, PRIMITIVES, GraspDensity, is_known
 
 __all__ = [
+    "MESH",
     "SHAPES",
     "THRESHOLDS",
     "ImageCounts",
@@ -72,10 +73,22 @@ __all__ = [
     "grasp_matches",
     "iter_views",
     "pose_errors",
+    "shape_column",
 ]
 
-SHAPES: tuple[str, ...] = tuple(PRIMITIVES)
-"""Object type names of the per-shape figures, in the order of their columns."""
+MESH = "mesh"
+"""The per-shape column that pools every imported mesh object (``kgn-bench objects add``)."""
+SHAPES: tuple[str, ...] = (*PRIMITIVES, MESH)
+"""The per-shape figures' columns, in order: the PS primitives, then ``MESH`` for all imported objects."""
+
+
+def shape_column(object_type: str) -> str:
+    """The per-shape column of an object type: a primitive's own, ``MESH`` for an imported object."""
+    if object_type in PRIMITIVES:
+        return object_type
+    if is_known(object_type):
+        return MESH
+    raise ValueError(f"unknown object type {object_type!r}; known: {', '.join(PRIMITIVES)} and imported objects")
 
 _COUNT_FIELDS = ("attributed", "credited", "covered", "gt", "objects_succeeded", "objects_evaluated")
 
@@ -196,7 +209,10 @@ class ImageCounts:
 
     @classmethod
     def from_dict(cls, d: dict) -> ImageCounts:
-        if list(d.get("shapes", [])) != list(SHAPES):
+        shapes = list(d.get("shapes", []))
+        if shapes == list(PRIMITIVES):  # stored before the mesh column existed: no mesh object in it
+            d = {**d, **{name: [[*row, 0] for row in d[name]] for name in _COUNT_FIELDS}}
+        elif shapes != list(SHAPES):
             raise ValueError(f"counts are for shapes {d.get('shapes')}, expected {list(SHAPES)}")
         return cls(
             tuple(Threshold(float(a), float(b)) for a, b in d["thresholds"]),
@@ -208,10 +224,7 @@ class ImageCounts:
 
 
 def _shape_indices(object_types: Sequence[str]) -> np.ndarray:
-    for t in object_types:
-        if t not in SHAPES:
-            raise ValueError(f"unknown object type {t!r}; known: {', '.join(SHAPES)}")
-    return np.array([SHAPES.index(t) for t in object_types], dtype=np.int64)
+    return np.array([SHAPES.index(shape_column(t)) for t in object_types], dtype=np.int64)
 
 
 def evaluate_image(
@@ -363,6 +376,8 @@ class VisionMetrics:
             "|---|" + "---:|" * (len(s["thresholds"]) + 2),
         ]
         for shape in SHAPES:
+            if s["thresholds"] and not s["thresholds"][0]["per_shape"][shape]["objects"]:
+                continue  # no object of this kind in the images
             cells = [
                 " / ".join(_pct(r["per_shape"][shape][m]) for m in ("gsr", "gcr", "osr")) for r in s["thresholds"]
             ]

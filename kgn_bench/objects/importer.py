@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes import OBJECTS
 from kgn_bench.shapes.grasp_sampling import SamplingConfig, sample_antipodal_grasps
 from kgn_bench.shapes.library import NAME_PATTERN, user_root
@@ -260,8 +261,9 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     t_decomp = time.perf_counter() - t0
     poses, widths = sample_antipodal_grasps(mesh, rng, config.sampling)
     if len(poses) == 0:
-        raise ObjectError(f"{path}: no antipodal grasp the gripper can span (nothing between 4 mm and the "
-                          "20 cm opening with both contacts inside the friction cone)")
+        raise ObjectError(f"{path}: no antipodal grasp the gripper can span (nothing between "
+                          f"{config.sampling.min_extent * 1000:.0f} mm and the {GRIPPER.max_width * 100:.0f} cm "
+                          "opening with both contacts inside the friction cone)")
     candidates = len(poses)
     if len(poses) > config.verify:
         pick = np.sort(rng.choice(len(poses), config.verify, replace=False))

@@ -37,7 +37,7 @@ class SamplingConfig:
     points: int = 600
     approaches: int = 8
     friction_cone_deg: float = 20.0
-    min_extent: float = 0.004
+    min_extent: float = 0.003
 
 
 def antipodal_pairs(mesh: trimesh.Trimesh, rng: np.random.Generator, config: SamplingConfig = SamplingConfig()

@@ -4,8 +4,9 @@ For each grasp ``T_obj_grasp`` (object frame; the object starts at the world ori
 
 1. the hand (``sim.robot.build_gripper``, the same MJCF the arm carries) rides on a free body welded to a
    mocap target (a weld, not a mocap parent: a teleported body has no velocity, so friction could not drag the
-   object along), placed so that its TCP is at the grasp: ``T_world_hand = T_obj_grasp · Trans(−tcp_offset, 0, 0)``;
-   the jaws start at the executor's opening ``GRIPPER.opening(width)``;
+   object along), placed so that its TCP is where the executor closes, ``depth`` (1 cm) past the grasp along
+   its approach: ``T_world_hand = T_obj_grasp · Trans(depth − tcp_offset, 0, 0)``; the jaws start at the
+   executor's opening ``GRIPPER.opening(width)``;
 2. a grasp whose open gripper already overlaps the object by more than ``max_start_penetration`` fails: the
    arm reaches a grasp from its pre-grasp, so no real gripper gets there (and MuJoCo would push the overlap
    apart into a wedge that holds);
@@ -31,6 +32,7 @@ from scipy.spatial.transform import Rotation
 from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.base import Shape
+from kgn_bench.shapes.household import APPROACH_DEPTH
 from kgn_bench.sim.robot import build_gripper
 from kgn_bench.sim.scene import PhysicsError, SceneObject, build_mjcf
 
@@ -52,6 +54,8 @@ class ShakeTest:
     min_opening: float = 0.002
     max_slip_m: float = 0.015
     max_start_penetration: float = 0.001
+    depth: float = APPROACH_DEPTH
+    """How far past the grasp origin the hand closes, as the executor does (``ExecutionConfig.grasp_depth``)."""
 
 
 class _Rig:
@@ -123,7 +127,7 @@ def _check_one(rig: _Rig, T_obj_grasp: np.ndarray, width: float, test: ShakeTest
     mujoco.mj_resetData(m, d)
     d.qpos[rig.obj_qpos : rig.obj_qpos + 3] = _START
     d.qpos[rig.obj_qpos + 3 : rig.obj_qpos + 7] = (1.0, 0.0, 0.0, 0.0)
-    T_grasp = make_pose(t=_START) @ T_obj_grasp
+    T_grasp = make_pose(t=_START) @ T_obj_grasp @ make_pose(t=np.array([test.depth, 0.0, 0.0]))
     T_hand = T_grasp @ make_pose(t=np.array([-GRIPPER.tcp_offset, 0.0, 0.0]))
     rig.set_hand(T_hand, teleport=True)
     half = float(GRIPPER.opening(width)) / 2.0
