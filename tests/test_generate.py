@@ -123,3 +123,16 @@ def test_physics_failure_names_the_scene_and_leaves_no_partial_files(tmp_path, m
     assert rc == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "left the table" in err and "resume" in err
+
+
+def test_scenes_of_imported_objects(object_library, tmp_path):
+    """``objects=`` draws scenes from imported objects: their verified grasps are the labels, relabelling
+    reproduces them, and a name that is neither built in nor imported is refused."""
+    config = GenerateConfig(mode="multi", scenes=2, views=1, seed=0, objects=("test_block",))
+    generate_dataset(config, tmp_path / "d", progress=False)
+    ann = SceneAnnotation.load(scene_dir(tmp_path / "d", 0) / "scene.json")
+    assert [o.type for o in ann.objects] == ["test_block"] and len(ann.objects[0].grasps) >= 8
+    again = relabel_grasps(ann, TRAIN_DENSITY)
+    np.testing.assert_allclose(again[0].poses, ann.objects[0].grasps.poses, atol=1e-12)
+    with pytest.raises(ValueError, match="unknown object 'no_such_thing'"):
+        GenerateConfig(objects=("no_such_thing",))

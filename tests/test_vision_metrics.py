@@ -13,6 +13,7 @@ from kgn_bench.data.format import DatasetError, SceneAnnotation, scene_dir
 from kgn_bench.data.generate import relabel_grasps
 from kgn_bench.detectors.base import Candidates, Observation
 from kgn_bench.eval.vision import (
+    MESH,
     SHAPES,
     THRESHOLDS,
     ImageCounts,
@@ -44,7 +45,7 @@ def test_thresholds_are_the_papers_in_radians():
     assert [(t.translation, t.rotation) for t in THRESHOLDS] == [
         (0.01, math.radians(20)), (0.02, math.radians(30)), (0.03, math.radians(45))]
     assert [t.label for t in THRESHOLDS] == ["1 cm / 20°", "2 cm / 30°", "3 cm / 45°"]
-    assert SHAPES == ("cuboid", "cylinder", "ring", "stick", "sphere", "semi_sphere")
+    assert SHAPES == ("cuboid", "cylinder", "ring", "stick", "sphere", "semi_sphere", "mesh")
     with pytest.raises(ValueError, match="positive"):
         Threshold(0.0, 0.1)
 
@@ -238,7 +239,7 @@ def test_markdown_lists_every_threshold_and_shape():
     for th in THRESHOLDS:
         assert f"| {th.label} | 100.0 | 100.0 | 100.0 | 1 / 1 | 1 / 1 | 1 / 1 |" in text
     assert "| ring | 100.0 / 100.0 / 100.0 | 100.0 / 100.0 / 100.0 | 100.0 / 100.0 / 100.0 | 1 | 1 |" in text
-    assert all(f"| {s} |" in text for s in SHAPES)
+    assert all(f"| {s} |" in text for s in SHAPES if s != MESH) and f"| {MESH} |" not in text  # no mesh object
 
 
 def test_ground_truth_detector_scores_100_percent_on_a_generated_dataset(tiny_dataset):
@@ -297,3 +298,17 @@ def test_paper_rotation_threshold_in_degrees():
     turned = make_pose(rot_z(math.radians(19.9)))[None]
     assert grasp_matches(turned, g, THRESHOLDS[0])[0, 0]
     assert not grasp_matches(make_pose(rot_z(math.radians(20.1)))[None], g, THRESHOLDS[0])[0, 0]
+
+
+def test_an_imported_object_counts_in_the_mesh_column(object_library):
+    """An imported object's predictions and grasps go to the ``mesh`` column, which the table then shows."""
+    gt = [_gs(_poses((0.0, 0.0, 0.0)))]
+    counts = evaluate_image(_poses((0.0, 0.0, 0.0)), gt, ["test_block"])
+    j = SHAPES.index(MESH)
+    assert counts.credited[0, j] == 1 and counts.credited[0, :j].sum() == 0
+    assert f"| {MESH} | 100.0 / 100.0 / 100.0 |" in VisionMetrics(counts).to_markdown()
+    old = counts.to_dict()
+    old["shapes"] = list(SHAPES[:-1])  # counts stored before the mesh column read with an empty one
+    for name in ("attributed", "credited", "covered", "gt", "objects_succeeded", "objects_evaluated"):
+        old[name] = [row[:-1] for row in old[name]]
+    assert ImageCounts.from_dict(old).credited[0, j] == 0

@@ -57,7 +57,7 @@ from kgn_bench.data.generate import relabel_grasps
 from kgn_bench.detectors.base import Candidates, Detector, Observation
 from kgn_bench.grasp import GraspSet, grasp_rotation_error
 from kgn_bench.progress import Progress
-from kgn_bench.shapes import EVAL_DENSITY, PRIMITIVES, GraspDensity, is_known
+from kgn_bench.shapes import EVAL_DENSITY, OBJECTS, PRIMITIVES, GraspDensity, is_known
 
 __all__ = [
     "MESH",
@@ -86,7 +86,7 @@ def shape_column(object_type: str) -> str:
     """The per-shape column of an object type: a primitive's own, ``MESH`` for an imported object."""
     if object_type in PRIMITIVES:
         return object_type
-    if is_known(object_type):
+    if object_type not in OBJECTS and is_known(object_type):
         return MESH
     raise ValueError(f"unknown object type {object_type!r}; known: {', '.join(PRIMITIVES)} and imported objects")
 
@@ -376,8 +376,8 @@ class VisionMetrics:
             "|---|" + "---:|" * (len(s["thresholds"]) + 2),
         ]
         for shape in SHAPES:
-            if s["thresholds"] and not s["thresholds"][0]["per_shape"][shape]["objects"]:
-                continue  # no object of this kind in the images
+            if shape == MESH and s["thresholds"] and not s["thresholds"][0]["per_shape"][shape]["objects"]:
+                continue  # no imported object in the images
             cells = [
                 " / ".join(_pct(r["per_shape"][shape][m]) for m in ("gsr", "gcr", "osr")) for r in s["thresholds"]
             ]
