@@ -147,6 +147,13 @@ def _cmd_perf_data(args) -> int:
     return 0
 
 
+def _cmd_perf_import(args) -> int:
+    from kgn_bench.perf import perf_import
+
+    print(perf_import(args.mesh, faces=args.faces, verify=args.verify))
+    return 0
+
+
 def _apply_settings(task, settings: list[str] | None):
     """``task`` with each ``section.name=value`` of ``--set`` applied (``ConfigError`` names a bad one)."""
     from kgn_bench.config import ConfigError, apply_override
@@ -575,6 +582,11 @@ def _add_perf(sub) -> None:
     pdet.add_argument("--threads", type=_int_at_least(1), default=2, help="torch threads (default 2)")
     pdet.add_argument("--data", type=Path, help="dataset whose test views to use (default: 4 generated scenes)")
     pdet.set_defaults(func=_cmd_perf_detector)
+    pimp = psub.add_parser("import", help="seconds to import one mesh (objects add), and the split")
+    pimp.add_argument("--mesh", type=Path, help="mesh file (default: a generated torus of --faces triangles)")
+    pimp.add_argument("--faces", type=_int_at_least(100), default=20_000)
+    pimp.add_argument("--verify", type=_int_at_least(8), default=160, help="grasps checked in physics (160)")
+    pimp.set_defaults(func=_cmd_perf_import)
 
 
 def _add_closed_loop(sub) -> None:

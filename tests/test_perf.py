@@ -20,3 +20,12 @@ def test_perf_detector_times_any_non_privileged_detector(tiny_dataset):
     assert "detector antipodal" in text and "| detect |" in text and "frames/s" in text
     with pytest.raises(ValueError, match="privileged"):
         perf_detector("oracle", frames=1, data=root)
+
+
+def test_perf_import_times_each_stage():
+    from kgn_bench.perf import perf_import
+
+    report = perf_import(faces=1000, verify=24, hulls=2)
+    assert "1000 faces" in report and "wall:" in report
+    for stage in ("repair", "decompose", "sample", "verify", "preview"):
+        assert f"| {stage} |" in report

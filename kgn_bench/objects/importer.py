@@ -245,6 +245,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
         raise ObjectError(f"object {name!r} already exists in {root} (pass --overwrite to replace it)")
     source_bytes = path.read_bytes() if path.is_file() else b""
     mesh = repair_mesh(_read(path), str(path))
+    t_repair = time.perf_counter() - t0
     scale = config.scale if config.scale is not None else (config.size / float(mesh.extents.max())
                                                            if config.size is not None else 1.0)
     mesh.apply_scale(scale)
@@ -257,9 +258,12 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
                           f"{MIN_EXTENT * 1000:.0f} mm)")
     mesh.apply_translation(-mesh.center_mass)
     rng = np.random.default_rng(config.seed)
+    t1 = time.perf_counter()
     hulls = _decompose(mesh, config, root / ".cache" / "coacd")
-    t_decomp = time.perf_counter() - t0
+    t_decomp = time.perf_counter() - t1
+    t1 = time.perf_counter()
     poses, widths = sample_antipodal_grasps(mesh, rng, config.sampling)
+    t_sample = time.perf_counter() - t1
     if len(poses) == 0:
         raise ObjectError(f"{path}: no antipodal grasp the gripper can span (nothing between "
                           f"{config.sampling.min_extent * 1000:.0f} mm and the {GRIPPER.max_width * 100:.0f} cm "
@@ -297,13 +301,16 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
                               f"(at least {MIN_GRASPS} needed)")
         np.savez(tmp / "grasps.npz", poses=poses[held], widths=widths[held])
         manifest["grasps"] = {"candidates": candidates, "checked": len(poses), "held": int(held.sum())}
-        manifest["timing_s"] = {"decompose": round(t_decomp, 2), "verify": round(t_verify, 2),
-                                "total": round(time.perf_counter() - t0, 2)}
-        _write_manifest(tmp, manifest)
+        timing = {"repair": t_repair, "decompose": t_decomp, "sample": t_sample, "verify": t_verify}
         if preview:
             from kgn_bench.viz.objects import draw_object
 
+            t1 = time.perf_counter()
             draw_object(MeshObject(tmp), tmp / "preview.png")
+            timing["preview"] = time.perf_counter() - t1
+        timing["total"] = time.perf_counter() - t0
+        manifest["timing_s"] = {k: round(v, 3) for k, v in timing.items()}
+        _write_manifest(tmp, manifest)
         if target.exists():
             shutil.rmtree(target)
         tmp.rename(target)
