@@ -130,3 +130,14 @@ def test_decomposition_is_cached(tmp_path):
     import_mesh(path, "b", FAST, root=root, preview=False)
     assert [p.stat().st_mtime_ns for p in (root / ".cache" / "coacd").glob("*.npz")] == [stamp]
     assert _objects(root) == ["a", "b"]
+
+
+def test_decomposition_errors_come_back_from_the_child():
+    """CoACD runs in a spawned child: what it raises (here a bad setting) returns as ``CoACDCrash``, and the
+    caller lives on."""
+    from kgn_bench.objects.coacd_worker import CoACDCrash, decompose
+
+    box = trimesh.creation.box((0.05, 0.05, 0.05))
+    assert len(decompose(box.vertices, box.faces, {"max_convex_hull": 1})) >= 1
+    with pytest.raises(CoACDCrash, match="CoACD failed"):
+        decompose(box.vertices, box.faces, {"no_such_setting": 1})

@@ -177,25 +177,34 @@ def repair_mesh(mesh: trimesh.Trimesh, origin: str = "mesh") -> trimesh.Trimesh:
 
 
 def _decompose(mesh: trimesh.Trimesh, config: ImportConfig, cache: Path) -> list[trimesh.Trimesh]:
-    """CoACD's convex pieces of ``mesh``, cached under ``cache`` by the mesh's and the settings' hash."""
-    import coacd
+    """CoACD's convex pieces of ``mesh``, cached under ``cache`` by the mesh's and the settings' hash (and
+    CoACD's version). CoACD runs in a child process (``objects.coacd_worker``); if it crashes, it runs once
+    more with its own manifold preprocessing and the next seed."""
+    from importlib.metadata import version
 
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
-    h.update(json.dumps([config.hulls, config.coacd_threshold, config.seed, coacd.__name__]).encode())
+    h.update(json.dumps([config.hulls, config.coacd_threshold, config.seed, version("coacd")]).encode())
     path = cache / f"{h.hexdigest()}.npz"
     if path.is_file():
         with np.load(path) as z:
             n = int(z["count"])
             return [trimesh.Trimesh(z[f"v{k}"], z[f"f{k}"], process=False) for k in range(n)]
-    coacd.set_log_level("error")
+    from kgn_bench.objects.coacd_worker import CoACDCrash, decompose
+
+    settings = dict(threshold=config.coacd_threshold, max_convex_hull=config.hulls, seed=config.seed,
+                    resolution=1000, preprocess_resolution=30, mcts_iterations=60)
     try:
-        parts = coacd.run_coacd(coacd.Mesh(mesh.vertices, mesh.faces), threshold=config.coacd_threshold,
-                                max_convex_hull=config.hulls, seed=config.seed, resolution=1000,
-                                preprocess_resolution=30, mcts_iterations=60)
-    except Exception as e:  # CoACD raises RuntimeError and others from C++
-        raise ObjectError(f"CoACD decomposition failed ({type(e).__name__}: {e})") from None
+        parts = decompose(mesh.vertices, mesh.faces, settings)
+    except CoACDCrash as first:
+        # CoACD's own preprocessing (a manifold remesh) and another seed route around the crashes seen so far
+        try:
+            parts = decompose(mesh.vertices, mesh.faces, {**settings, "seed": config.seed + 1,
+                                                          "preprocess_mode": "on"})
+        except CoACDCrash as e:
+            raise ObjectError(f"convex decomposition failed twice: {first}; then, with CoACD's preprocessing, "
+                              f"{e}") from None
     hulls = []
     for v, f in parts:
         hull = trimesh.Trimesh(np.asarray(v), np.asarray(f), process=True).convex_hull
