@@ -8,7 +8,13 @@ import trimesh
 
 from kgn_bench.geometry import frame_from_xz, make_pose, rot_x
 from kgn_bench.gripper import GRIPPER
-from kgn_bench.shapes.grasp_sampling import SamplingConfig, antipodal_accepts, antipodal_pairs, sample_antipodal_grasps
+from kgn_bench.shapes.grasp_sampling import (
+    SamplingConfig,
+    antipodal_accepts,
+    antipodal_pairs,
+    diverse_subset,
+    sample_antipodal_grasps,
+)
 from kgn_bench.shapes.household import PINCH_CLEARANCE
 
 
@@ -80,3 +86,17 @@ def test_the_labellers_test_on_given_grasps():
     big = trimesh.creation.box((0.3, 0.05, 0.05))
     ok, _ = antipodal_accepts(big, across[None], np.array([GRIPPER.max_width]))
     assert not ok[0]
+
+
+def test_diverse_subset_spreads_over_closing_axes():
+    """On a 12 × 9 × 3 cm slab most antipodal pairs close across the 3 cm thickness (the large faces hold
+    most of the surface); a uniform draw keeps that bias, the diverse subset draws every closing axis."""
+    slab = trimesh.creation.box((0.12, 0.09, 0.03))
+    poses, _ = sample_antipodal_grasps(slab, np.random.default_rng(4), SamplingConfig(points=400))
+    vertical = np.abs(poses[:, 2, 2]) > 0.9
+    assert vertical.mean() > 0.5
+    pick = diverse_subset(poses, 60, np.random.default_rng(5))
+    assert len(np.unique(pick)) == 60 and np.all(np.diff(pick) > 0)
+    assert vertical[pick].mean() < 0.5
+    axes = np.argmax(np.abs(poses[pick, :3, 2]), axis=1)
+    assert set(axes.tolist()) == {0, 1, 2}

@@ -49,6 +49,9 @@ COLUMNS = (
     Column("multi_object", "clear", "multi clear"),
     Column("multi_household", "success", "multi (household mix) success"),
     Column("multi_household", "clear", "multi (household mix) clear"),
+    Column("single_real", "success", "single, real objects"),
+    Column("multi_real", "success", "multi (real objects) success"),
+    Column("multi_real", "clear", "multi (real objects) clear"),
 )
 """Known columns in display order; runs of other tasks get columns named after the task."""
 

@@ -2,13 +2,14 @@
 
 It is the harness's upper bound, not a detector: it sees object types, sizes and poses, which no camera
 gives. For every object still on the table it returns the evaluation-density families (``EVAL_DENSITY``), each
-also tilted by ±``TILT_DEG`` about its closing axis (``G · R_z(±α)``: the fingers stay where they pinch,
-the approach leans along the pinched wall or axis, so a ring standing on edge can be taken from above
-at a slant), minus those whose labelling proxy collides or whose palm and wrist would hit anything on the straight
-approach from ``approach`` m back to where the executor closes, ``grasp_depth`` past the grasp origin
-(``sim/collision.py``, exact scene geometry), in the camera frame. Confidence favours
-top-down approaches (the executor's easiest) near the object's centre (the stablest):
-``c = ½ (1 − x_grasp · ẑ_world) − 2 m⁻¹ · ‖t_grasp − t_object‖``. There is no reprojection error (NaN).
+also tilted by ±``TILT_DEG`` about its closing axis (``G · R_z(±α)``: the fingers stay where they pinch, the
+approach leans along the pinched wall or axis, so a ring standing on edge can be taken from above at a slant;
+an imported object's physics-verified grasps are used untilted, ``Shape.grasps_verified``), minus those whose
+labelling proxy collides or whose palm and wrist would hit anything on the straight approach from
+``approach`` m back to where the executor closes, ``grasp_depth`` past the grasp origin (``sim/collision.py``,
+exact scene geometry), in the camera frame. Confidence favours top-down approaches (the executor's easiest)
+near the object's centre (the stablest): ``c = ½ (1 − x_grasp · ẑ_world) − 2 m⁻¹ · ‖t_grasp − t_object‖``.
+There is no reprojection error (NaN).
 """
 
 from __future__ import annotations
@@ -70,7 +71,9 @@ class OracleDetector:
             if not on_table(scene, i):
                 continue
             T = scene.object_pose(i)
-            family = tilted(obj.shape.grasps(EVAL_DENSITY), (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG)))
+            family = obj.shape.grasps(EVAL_DENSITY)
+            if not obj.shape.grasps_verified:  # a physics-verified set is used as it is
+                family = tilted(family, (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG)))
             grasps = label_collisions(scene, i, family.transformed(T)).free()
             pushed = grasps.poses.copy()  # where the executor closes the jaws
             pushed[:, :3, 3] += self.depth * grasps.poses[:, :3, 0]

@@ -14,8 +14,9 @@ The steps, each of which refuses a bad mesh with one ``ObjectError`` line and wr
    repaired mesh and the settings, so a re-import costs nothing;
 6. **rest poses** from trimesh's quasi-static estimate (``compute_stable_poses``), the likely ones kept;
 7. **grasps**: antipodal candidates (``shapes.grasp_sampling``), at most ``verify`` of them checked in physics
-   (``sim.grasp_verify``); the ones that hold are the object's grasps, and there must be at least
-   ``MIN_GRASPS``;
+   (``sim.grasp_verify``), drawn spread over closing and approach directions
+   (``shapes.grasp_sampling.diverse_subset``); the ones that hold are the object's grasps, and there must be
+   at least ``MIN_GRASPS``;
 8. **write** the folder atomically (a temporary folder renamed into place) with a preview PNG.
 
 Mass: ``mass`` if given, else ``density`` (kg/m³, default 700 as in VGN/GIGA) × volume.
@@ -36,7 +37,7 @@ import trimesh
 
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes import OBJECTS
-from kgn_bench.shapes.grasp_sampling import SamplingConfig, sample_antipodal_grasps
+from kgn_bench.shapes.grasp_sampling import SamplingConfig, diverse_subset, sample_antipodal_grasps
 from kgn_bench.shapes.library import NAME_PATTERN, user_root
 from kgn_bench.shapes.mesh_object import MANIFEST, MANIFEST_VERSION, MeshObject, ObjectError
 
@@ -279,7 +280,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
                           "opening with both contacts inside the friction cone)")
     candidates = len(poses)
     if len(poses) > config.verify:
-        pick = np.sort(rng.choice(len(poses), config.verify, replace=False))
+        pick = diverse_subset(poses, config.verify, rng)
         poses, widths = poses[pick], widths[pick]
     volume = float(mesh.volume)
     mass = config.mass if config.mass is not None else config.density * volume

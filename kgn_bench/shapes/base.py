@@ -107,6 +107,9 @@ class Shape(abc.ABC):
     name: ClassVar[str]
     axisymmetric: ClassVar[bool] = False
     """True when the object is symmetric about its z axis (its frame's x axis may be chosen freely)."""
+    grasps_verified: ClassVar[bool] = False
+    """True when ``grasps`` returns grasps each checked in physics (an imported mesh), with approaches all
+    round each closing axis; False for closed-form families."""
 
     density: ClassVar[float] = 500.0
     """Material density (kg/m³) used for the mass before clipping to ``MASS_RANGE``."""

@@ -26,7 +26,11 @@ from kgn_bench.geometry import frame_from_xz
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.household import PINCH_CLEARANCE, gripper_sweep_free
 
-__all__ = ["SamplingConfig", "antipodal_accepts", "antipodal_pairs", "sample_antipodal_grasps"]
+__all__ = ["SamplingConfig", "antipodal_accepts", "antipodal_pairs", "diverse_subset", "sample_antipodal_grasps"]
+
+_DIRECTIONS = np.array([d for d in np.ndindex(3, 3, 3) if d != (1, 1, 1)], dtype=float) - 1.0
+_DIRECTIONS /= np.linalg.norm(_DIRECTIONS, axis=1, keepdims=True)
+"""26 directions (cube faces, edges and corners) that bin closing axes and approaches."""
 
 
 @dataclass(frozen=True)
@@ -94,6 +98,32 @@ def sample_antipodal_grasps(mesh: trimesh.Trimesh, rng: np.random.Generator,
         surface = trimesh.sample.sample_surface(mesh, 4000, seed=int(rng.integers(2**31)))[0]
     keep = gripper_sweep_free(surface, poses, widths)
     return poses[keep], widths[keep]
+
+
+def diverse_subset(poses: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+    """Indices (sorted) of ``count`` of ``poses`` (N, 4, 4) spread over grasp directions: each grasp is binned
+    by its closing axis (the nearest of 13 sign-free directions) and its approach (the nearest of 26), and the
+    bins are drawn from in turn, in random order, each bin's grasps in random order.
+
+    A uniform draw would follow the surface area: on a flat object most antipodal pairs close across its
+    thickness, and a grasp that closes vertically on an object lying flat puts a finger into the table, so
+    that object would end up with few grasps a robot can use."""
+    n = len(poses)
+    if n <= count:
+        return np.arange(n)
+    closing = np.argmax(np.abs(poses[:, :3, 2] @ _DIRECTIONS.T), axis=1)
+    closing = np.minimum(closing, 25 - closing)  # d and −d share a bin (the list is symmetric about its middle)
+    approach = np.argmax(poses[:, :3, 0] @ _DIRECTIONS.T, axis=1)
+    bins: dict[int, list[int]] = {}
+    for i in rng.permutation(n):
+        bins.setdefault(int(closing[i]) * 26 + int(approach[i]), []).append(int(i))
+    queues = [bins[k] for k in rng.permutation(sorted(bins))]
+    picked: list[int] = []
+    while len(picked) < count:
+        for q in queues:
+            if q and len(picked) < count:
+                picked.append(q.pop())
+    return np.sort(np.asarray(picked))
 
 
 def antipodal_accepts(mesh: trimesh.Trimesh, poses: np.ndarray, widths: np.ndarray,

@@ -69,6 +69,7 @@ class MeshObject(Shape):
 
     folder: Path
     axisymmetric = False
+    grasps_verified = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "folder", Path(self.folder))
