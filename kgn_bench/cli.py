@@ -345,6 +345,26 @@ def _cmd_eval_errors(args) -> int:
     return 0
 
 
+def _cmd_eval_physics(args) -> int:
+    import json
+
+    from kgn_bench.detectors.kgn import KGNDetector
+    from kgn_bench.eval.physics_check import physics_success, to_markdown
+    from kgn_bench.io import atomic_write_text
+
+    _writable(args.out)
+    detector = KGNDetector(args.variant, args.weights)
+    counts = physics_success(detector, args.data, split=args.split, views=args.views, top_k=args.top,
+                             progress=not args.quiet)
+    text = to_markdown(counts, f"{args.weights} ({detector.name}) on {args.data} {args.split}")
+    print(text)
+    if args.out:
+        atomic_write_text(args.out / "physics.json", json.dumps(counts, indent=1) + "\n")
+        atomic_write_text(args.out / "physics.md", text)
+        print(f"wrote {args.out}/physics.json, physics.md")
+    return 0
+
+
 def _cmd_perf_detector(args) -> int:
     from kgn_bench.perf import perf_detector
 
@@ -659,6 +679,11 @@ def _add_learning(sub) -> None:
                           parents=[_parent(_weights, _split, _quiet)])
     err.add_argument("--out", type=Path, help="folder for errors.json, errors.md and errors.png (CDF plots)")
     err.set_defaults(func=_cmd_eval_errors)
+    phy = esub.add_parser("physics", help="share of the top predictions that hold the object in the physics check",
+                          parents=[_parent(_weights, _split, _quiet)])
+    phy.add_argument("--top", type=_int_at_least(1), default=10, help="predictions per view checked (default 10)")
+    phy.add_argument("--out", type=Path, help="folder for physics.json and physics.md")
+    phy.set_defaults(func=_cmd_eval_physics)
     shw = esub.add_parser("show", help="draw a detector's keypoint boxes beside the ground truth of one view",
                           parents=[_parent(_weights)])
     shw.add_argument("--data", type=Path, required=True)

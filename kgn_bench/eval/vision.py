@@ -394,13 +394,15 @@ class VisionMetrics:
 @dataclass
 class TestView:
     """One image of a split with its ground truth: the ``Observation`` (RGB, depth, intrinsics, camera
-    pose; no mask), the scene's GT grasps per object (world frame, collision-labelled) and object types."""
+    pose; no mask), the scene's GT grasps per object (world frame, collision-labelled), object types, and the
+    objects' annotations (type, dims, world pose)."""
 
     scene: int
     view: int
     observation: Observation
     gt: list[GraspSet]
     types: list[str]
+    objects: list = field(default_factory=list)
 
 
 def iter_views(data_dir: Path, split: str = "test", views: int | None = None, density: GraspDensity = EVAL_DENSITY,
@@ -440,7 +442,7 @@ def iter_views(data_dir: Path, split: str = "test", views: int | None = None, de
                 obs = Observation(rgbd.rgb, rgbd.depth, annotation.intrinsics, annotation.camera_poses[view])
                 clock["read"] = clock.get("read", 0.0) + time.perf_counter() - t0
                 done += 1
-                yield TestView(scene, view, obs, gt, types)
+                yield TestView(scene, view, obs, gt, types, annotation.objects)
 
     return total, generate()
 
