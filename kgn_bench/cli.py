@@ -359,6 +359,7 @@ def _cmd_eval_physics(args) -> int:
     text = to_markdown(counts, f"{args.weights} ({detector.name}) on {args.data} {args.split}")
     print(text)
     if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)
         atomic_write_text(args.out / "physics.json", json.dumps(counts, indent=1) + "\n")
         atomic_write_text(args.out / "physics.md", text)
         print(f"wrote {args.out}/physics.json, physics.md")

@@ -31,3 +31,13 @@ def test_grasps_off_the_object_fail(tiny_dataset):
 
     counts = physics_success(backed_off, root, views=2, top_k=3, progress=False)
     assert counts["all"]["checked"] == 6 and counts["all"]["held"] == 0 and counts["all"]["labelled"] == 0
+
+
+def test_cli_writes_the_table(tiny_dataset, tmp_path):
+    from kgn_bench.cli import main
+
+    root, _ = tiny_dataset
+    out = tmp_path / "new" / "physics"
+    assert main(["eval", "physics", "--weights", "kgnv2", "--data", str(root), "--views", "1", "--top", "2",
+                 "--quiet", "--out", str(out)]) == 0
+    assert "| all | 2 |" in (out / "physics.md").read_text()
