@@ -51,9 +51,14 @@ class ClusterError(KGNBenchError, RuntimeError):
 
 
 def worker_env() -> dict[str, str]:
-    """``WORKER_ENV`` with this process's ``MUJOCO_GL`` (default ``egl``) and ``PYOPENGL_PLATFORM``."""
+    """``WORKER_ENV`` with this process's ``MUJOCO_GL`` (default ``egl``) and ``PYOPENGL_PLATFORM``, and its
+    object library ``KGN_BENCH_OBJECTS`` when set (imported objects must be at that path on every node: a
+    shared filesystem, or the same import run on each)."""
     gl = os.environ.get("MUJOCO_GL", "egl")
-    return {**WORKER_ENV, "MUJOCO_GL": gl, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", gl)}
+    env = {**WORKER_ENV, "MUJOCO_GL": gl, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", gl)}
+    if os.environ.get("KGN_BENCH_OBJECTS"):
+        env["KGN_BENCH_OBJECTS"] = os.environ["KGN_BENCH_OBJECTS"]
+    return env
 
 
 def _ray():

@@ -272,3 +272,12 @@ def test_a_driver_killed_mid_run_resumes_with_the_same_command(ray_head, tmp_pat
     assert f"{6 - done} trials in" in resumed.stdout
     _same_run(local, out)
     assert len(trials.read_text().splitlines()) == 6
+
+
+def test_worker_env_carries_the_object_library(monkeypatch):
+    from kgn_bench.cluster import WORKER_ENV, worker_env
+
+    monkeypatch.delenv("KGN_BENCH_OBJECTS", raising=False)
+    assert "KGN_BENCH_OBJECTS" not in worker_env() and set(WORKER_ENV) <= set(worker_env())
+    monkeypatch.setenv("KGN_BENCH_OBJECTS", "/shared/objects")
+    assert worker_env()["KGN_BENCH_OBJECTS"] == "/shared/objects"
