@@ -15,8 +15,9 @@ $(BIN)/kgn-bench: pyproject.toml constraints.txt
 
 setup: $(BIN)/kgn-bench
 
-# The main job: the closed-loop benchmark (tasks/benchmark.toml: 4 tasks) with the shipped KGNv2 weights,
-# then the report table (runs/benchmark/benchmark.md). `kgn-bench benchmark --out results` runs every detector.
+# The main job: the closed-loop benchmark (tasks/benchmark.toml: primitives, household objects, the real-object
+# set, imported on first use, and pile and packed rounds) with the shipped KGNv2 weights, then the report table
+# (runs/benchmark/benchmark.md). `kgn-bench benchmark --out results` runs every detector.
 benchmark: setup
 	$(BIN)/kgn-bench benchmark tasks/benchmark.toml --detectors kgnv2 --workers 2 --runs runs/benchmark
 
