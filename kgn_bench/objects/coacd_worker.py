@@ -20,7 +20,12 @@ class CoACDCrash(RuntimeError):
 
 
 def _run(vertices: np.ndarray, faces: np.ndarray, settings: dict) -> list[tuple[np.ndarray, np.ndarray]]:
+    import os
+
     import coacd
+
+    quiet = os.open(os.devnull, os.O_WRONLY)  # an assertion's message goes to the C stderr; the caller reports
+    os.dup2(quiet, 2)
 
     coacd.set_log_level("error")
     parts = coacd.run_coacd(coacd.Mesh(vertices, faces), **settings)
