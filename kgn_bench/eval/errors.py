@@ -38,7 +38,7 @@ from kgn_bench.io import atomic_write_text
 from kgn_bench.progress import Progress
 from kgn_bench.types import Candidates, Observation
 
-from .vision import SHAPES, THRESHOLDS, detector_call, iter_views, pose_errors, shape_column
+from .vision import SHAPES, detector_call, iter_views, nearest_grasps, shape_column
 
 __all__ = ["TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image", "markdown", "write_errors"]
 
@@ -97,10 +97,7 @@ def decompose_image(pred_world: np.ndarray, pred_widths: np.ndarray, gt: list[Gr
     if n == 0 or len(grasps) == 0:
         return np.zeros((0, len(TERMS))), np.zeros(0, dtype=bool), np.zeros(0, dtype="<U16")
     owner = np.repeat(np.arange(len(gt)), [len(g) for g in gt])
-    first = THRESHOLDS[0]
-    d_t, d_r = pose_errors(pred_world, grasps.poses)
-    nearest = np.argmin(d_t / first.translation + d_r / first.rotation, axis=1)
-    matched = ((d_t < first.translation) & (d_r < first.rotation) & ~grasps.collides[None, :]).any(axis=1)
+    _, d_r, nearest, matched = nearest_grasps(pred_world, grasps)
     cam_T_world = invert_pose(obs.camera_pose)
     p = transform_points(cam_T_world, pred_world[:, :3, 3])
     g = transform_points(cam_T_world, grasps.poses[nearest, :3, 3])

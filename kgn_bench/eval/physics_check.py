@@ -28,7 +28,7 @@ from kgn_bench.shapes import shape_from_dims
 from kgn_bench.sim.grasp_verify import verify_grasps
 from kgn_bench.types import Candidates, Observation
 
-from .vision import SHAPES, THRESHOLDS, detector_call, iter_views, pose_errors, shape_column
+from .vision import SHAPES, THRESHOLDS, detector_call, iter_views, nearest_grasps, shape_column
 
 __all__ = ["physics_success", "to_markdown"]
 
@@ -40,7 +40,6 @@ def physics_success(detect: Callable[[Observation], Candidates], data_dir: Path,
     total, items = iter_views(data_dir, split, views)
     counts = {name: {"checked": 0, "held": 0, "labelled": 0} for name in ("all", *SHAPES)}
     shapes: dict[tuple, object] = {}
-    first = THRESHOLDS[0]
     bar = Progress(total, f"eval physics {split}", unit="images", enabled=progress)
     for item in items:
         cands = run(item)
@@ -52,19 +51,18 @@ def physics_success(detect: Callable[[Observation], Candidates], data_dir: Path,
         world = cands.world_poses(item.observation.camera_pose)[keep]
         widths = cands.widths[keep]
         owner = np.repeat(np.arange(len(item.gt)), [len(g) for g in item.gt])
-        d_t, d_r = pose_errors(world, grasps.poses)
-        nearest = np.argmin(d_t / first.translation + d_r / first.rotation, axis=1)
-        labelled = ((d_t < first.translation) & (d_r < first.rotation) & ~grasps.collides[None, :]).any(axis=1)
-        for j, (pose, width) in enumerate(zip(world, widths)):
-            obj = item.objects[owner[nearest[j]]]
+        _, _, nearest, labelled = nearest_grasps(world, grasps)
+        target = owner[nearest]
+        for k in np.unique(target):  # one physics rig per object and view, all its predictions through it
+            obj, mine = item.objects[k], np.flatnonzero(target == k)
             key = (obj.type, repr(sorted(obj.dims.items())))
             if key not in shapes:
                 shapes[key] = shape_from_dims(obj.type, obj.dims)
-            held = bool(verify_grasps(shapes[key], (invert_pose(obj.pose) @ pose)[None], np.array([width]))[0])
+            held = verify_grasps(shapes[key], invert_pose(obj.pose)[None] @ world[mine], widths[mine])
             for name in ("all", shape_column(obj.type)):
-                counts[name]["checked"] += 1
-                counts[name]["held"] += int(held)
-                counts[name]["labelled"] += int(labelled[j])
+                counts[name]["checked"] += len(mine)
+                counts[name]["held"] += int(held.sum())
+                counts[name]["labelled"] += int(labelled[mine].sum())
     bar.close()
     return counts
 

@@ -72,6 +72,7 @@ __all__ = [
     "evaluate_image",
     "grasp_matches",
     "iter_views",
+    "nearest_grasps",
     "pose_errors",
     "shape_column",
 ]
@@ -135,6 +136,17 @@ def pose_errors(pred: np.ndarray, gt: np.ndarray, max_translation: float = math.
         Rp, Rg = pred[i, :3, :3], gt[j, :3, :3]
         d_r[i, j] = grasp_rotation_error(Rp, Rg)
     return d_t, d_r
+
+
+def nearest_grasps(pred: np.ndarray, gt: GraspSet) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For predictions ``pred`` (N, 4, 4) and labelled grasps ``gt`` (same frame): ``(d_t, d_r, nearest,
+    matched)``: the (N, M) errors of ``pose_errors``, the index of each prediction's nearest grasp (least
+    d_t/δ + d_R/θ at the first threshold) and whether it lies within that threshold of a collision-free one."""
+    first = THRESHOLDS[0]
+    d_t, d_r = pose_errors(pred, gt.poses)
+    nearest = np.argmin(d_t / first.translation + d_r / first.rotation, axis=1)
+    matched = ((d_t < first.translation) & (d_r < first.rotation) & ~gt.collides[None, :]).any(axis=1)
+    return d_t, d_r, nearest, matched
 
 
 def grasp_matches(pred: np.ndarray, gt: np.ndarray, threshold: Threshold) -> np.ndarray:
