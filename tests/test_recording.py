@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 from pathlib import Path
 
@@ -213,7 +214,7 @@ def test_replay_web_serves_the_viewer_on_localhost(trials, tmp_path):
 
     port = _free_port_pair()
     cmd = [sys.executable, "-m", "kgn_bench.cli", "replay", str(trials[0]), "--web", "--port", str(port)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         line = proc.stdout.readline()
         assert line.strip() == f"serving {trials[0]}: open {web_viewer_url(port)}"
@@ -223,7 +224,12 @@ def test_replay_web_serves_the_viewer_on_localhost(trials, tmp_path):
             serve_web(trials[0], port=port, wait=False)
     finally:
         proc.send_signal(2)  # Ctrl-C: the command stops its server
-        proc.wait(timeout=20)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, 9)
+            proc.wait()
+            pytest.fail("replay --web did not stop within 30 s of Ctrl-C")
     assert proc.returncode == 0
     import socket
 

@@ -579,38 +579,44 @@ def serve_web(path: Path, port: int = 9090, wait: bool = True) -> subprocess.Pop
     cmd = [*rerun_command(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
            "--port", str(port + 1), str(path)]
     env = {**os.environ, "RERUN_ANALYTICS": "false"}
-    log = tempfile.TemporaryFile()
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env, start_new_session=True)
-    deadline = time.monotonic() + 20.0
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            log.seek(0)
-            err = _ANSI_ESCAPE.sub("", log.read().decode(errors="replace"))
-            last = err.strip().splitlines()[-1] if err.strip() else f"exit {proc.returncode}"
-            raise RecordingError(f"the rerun web viewer did not start: {last}")
-        with socket.socket() as sock:
-            if sock.connect_ex(("127.0.0.1", port)) == 0:
-                break
-        time.sleep(0.1)
-    else:
-        stop_server(proc)
-        raise RecordingError(f"the rerun web viewer did not answer on port {port} within 20 s")
-    print(f"serving {path}: open {web_viewer_url(port)}", flush=True)
-    if not wait:
-        return proc
     import signal
 
     def terminate(signum, frame):
         raise KeyboardInterrupt
 
-    previous = signal.signal(signal.SIGTERM, terminate)  # a `kill` stops the server too, not only Ctrl-C
+    # A `kill` stops the server too, not only Ctrl-C. The handler is in place before the server starts, and the
+    # server is stopped on every way out of here but a clean `wait=False` start, so an interrupt that lands
+    # while the viewer is still starting cannot leave it running in its own session.
+    previous = signal.signal(signal.SIGTERM, terminate) if wait else None
+    log = tempfile.TemporaryFile()
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env, start_new_session=True)
+    started = False
     try:
-        proc.wait()
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline:
+            if proc.poll() is not None:
+                log.seek(0)
+                err = _ANSI_ESCAPE.sub("", log.read().decode(errors="replace"))
+                last = err.strip().splitlines()[-1] if err.strip() else f"exit {proc.returncode}"
+                raise RecordingError(f"the rerun web viewer did not start: {last}")
+            with socket.socket() as sock:
+                if sock.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            time.sleep(0.1)
+        else:
+            raise RecordingError(f"the rerun web viewer did not answer on port {port} within 20 s")
+        print(f"serving {path}: open {web_viewer_url(port)}", flush=True)
+        started = True
+        if wait:
+            proc.wait()
     except KeyboardInterrupt:
-        pass
+        if not started:
+            raise
     finally:
-        stop_server(proc)
-        signal.signal(signal.SIGTERM, previous)
+        if wait or not started:
+            stop_server(proc)
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return proc
 
 
@@ -624,7 +630,7 @@ def stop_server(proc: subprocess.Popen) -> None:
     except ProcessLookupError:
         return
     try:
-        proc.wait(timeout=10)
+        proc.wait(timeout=5)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
