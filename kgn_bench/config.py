@@ -1,6 +1,7 @@
 """Typed benchmark task configs (tasks/*.toml), validated with one-line errors naming the problem.
 
-A task file has the sections ``[task]``, ``[objects]``, ``[camera]``, ``[selector]`` and ``[execution]``;
+A task file has the sections ``[task]``, ``[objects]``, ``[camera]``, ``[selector]``, ``[execution]`` and
+``[resources]``;
 every key is optional except ``task.name`` and ``task.protocol``. Unknown sections or keys, wrong types,
 out-of-range values and unknown object names are errors (``ConfigError``).
 """
@@ -20,8 +21,8 @@ from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
 from kgn_bench.shapes.library import packaged, set_names
 
 __all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES",
-           "CameraConfig", "ConfigError", "ExecutionConfig", "SelectorConfig", "TaskConfig", "apply_override",
-           "load_task", "parse_section", "read_toml", "resolve_task"]
+           "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig", "SelectorConfig", "TaskConfig",
+           "apply_override", "load_task", "parse_section", "read_toml", "resolve_task"]
 
 PROTOCOLS = ("single_object", "multi_object", "pile", "packed")
 CLEARANCE_PROTOCOLS = ("multi_object", "pile", "packed")
@@ -148,6 +149,25 @@ class ExecutionConfig:
 
 
 @dataclass(frozen=True)
+class ResourceConfig:
+    """What one trial (or round) reserves on a Ray cluster (``--backend ray``): ``num_cpus`` CPUs and
+    ``num_gpus`` GPUs of a node (a fraction shares one: 0.25 puts four trials on a GPU). Ray schedules by these
+    reservations; the trial itself still runs on one thread (``kgn_bench.threads``), so the numbers never
+    change a result, only how many trials a node takes at once (raise ``num_cpus`` for scenes that need more
+    memory per trial than a core's share). The local pool ignores them. Not part of a run's identity: a run
+    resumes under other reservations."""
+
+    num_cpus: float = 1.0
+    num_gpus: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.num_cpus > 0:
+            raise ValueError(f"num_cpus must be > 0, got {self.num_cpus}")
+        if not self.num_gpus >= 0:
+            raise ValueError(f"num_gpus must be ≥ 0, got {self.num_gpus}")
+
+
+@dataclass(frozen=True)
 class TaskConfig:
     """A benchmark task. ``trials``: per object of ``objects`` for ``single_object``, scenes for
     ``multi_object`` (each with ``objects_per_scene`` objects drawn from ``objects``)."""
@@ -161,6 +181,7 @@ class TaskConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     selector: SelectorConfig = field(default_factory=SelectorConfig)
     execution: ExecutionConfig = field(default_factory=ExecutionConfig)
+    resources: ResourceConfig = field(default_factory=ResourceConfig)
 
     @property
     def clearance(self) -> bool:
@@ -282,7 +303,7 @@ def load_task(path: str | Path) -> TaskConfig:
     """Read and validate a task file, named by its path or by its bundled name (``resolve_task``)."""
     path = resolve_task(path)
     raw = read_toml(path, "task file")
-    sections = {"task", "objects", "camera", "selector", "execution"}
+    sections = {"task", "objects", "camera", "selector", "execution", "resources"}
     for name, value in raw.items():
         if name not in sections:
             raise ConfigError(f"{path}: unknown section [{name}] (known: {', '.join(sorted(sections))})")
@@ -324,6 +345,7 @@ def load_task(path: str | Path) -> TaskConfig:
         camera=parse_section(f"{path} [camera]", CameraConfig, raw.get("camera", {})),
         selector=parse_section(f"{path} [selector]", SelectorConfig, raw.get("selector", {})),
         execution=parse_section(f"{path} [execution]", ExecutionConfig, raw.get("execution", {})),
+        resources=parse_section(f"{path} [resources]", ResourceConfig, raw.get("resources", {})),
     )
     validate(cfg, str(path))
     return cfg

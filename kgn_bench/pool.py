@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import AbstractContextManager, nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
@@ -52,6 +52,14 @@ class Backend:
             raise ValueError("--address and --num-gpus need --backend ray")
         if self.num_cpus <= 0 or self.num_gpus < 0:
             raise ValueError("num_cpus must be > 0 and num_gpus ≥ 0")
+
+    def reserving(self, num_cpus: float, num_gpus: float = 0.0) -> Backend:
+        """This backend with each job reserving ``num_cpus`` CPUs and ``num_gpus`` GPUs (a task's
+        ``[resources]``), unless ``--num-gpus`` already set the GPUs here. The local pool reserves nothing and
+        is returned as it is."""
+        if self.kind == "local":
+            return self
+        return replace(self, num_cpus=num_cpus, num_gpus=self.num_gpus or num_gpus)
 
     def prepare(self, initializer: Callable[..., None] | None = None,
                 initargs: Iterable[Any] = ()) -> Callable[[], None]:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from kgn_bench.config import ConfigError, TaskConfig, load_task, validate
+from kgn_bench.config import ConfigError, ResourceConfig, TaskConfig, load_task, validate
 from kgn_bench.shapes import PRIMITIVES
 
 TASKS = Path(__file__).resolve().parents[1] / "tasks"
@@ -73,6 +73,9 @@ def test_defaults_fill_optional_sections(tmp_path):
         (HEAD + "[camera]\ndistance = 5.0\n", "camera.distance must lie in [0.3, 2] m"),
         (HEAD + "[camera]\nelevation_deg = 5\n", "camera.elevation_deg must lie in [10, 90]"),
         (HEAD + "[execution]\nmax_consecutive_failures = 0\n", "max_consecutive_failures must be ≥ 1"),
+        (HEAD + "[resources]\nnum_cpus = 0\n", "num_cpus must be > 0, got 0.0"),
+        (HEAD + "[resources]\nnum_gpus = -1\n", "num_gpus must be ≥ 0, got -1.0"),
+        (HEAD + "[resources]\nmemory = 4\n", "[resources]: unknown key 'memory' (known: num_cpus, num_gpus)"),
     ],
     ids=[
         "malformed",
@@ -95,6 +98,9 @@ def test_defaults_fill_optional_sections(tmp_path):
         "distance_range",
         "elevation_range",
         "max_failures_0",
+        "num_cpus_0",
+        "num_gpus_negative",
+        "unknown_resources_key",
     ],
 )
 def test_bad_task_files_name_the_file_and_the_problem(tmp_path, body, fragment):
@@ -225,3 +231,11 @@ def test_selector_mode_and_the_clutter_protocols():
     assert all(getattr(eff, k) == v for k, v in RAW_SELECTOR.items())
     with pytest.raises(ConfigError, match=r"selector\.mode must be one of assisted, raw"):
         apply_override(load_task("single_object"), "selector.mode", "blind")
+
+
+def test_resources_are_read_from_the_task_file(tmp_path):
+    p = tmp_path / "r.toml"
+    p.write_text(HEAD + "[resources]\nnum_cpus = 2\nnum_gpus = 0.25\n")
+    t = load_task(p)
+    assert t.resources == ResourceConfig(num_cpus=2.0, num_gpus=0.25)
+    assert load_task(TASKS / "single_object.toml").resources == ResourceConfig(num_cpus=1.0, num_gpus=0.0)

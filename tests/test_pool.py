@@ -5,7 +5,7 @@ from contextlib import contextmanager
 
 import pytest
 
-from kgn_bench.pool import PoolError, run_jobs
+from kgn_bench.pool import LOCAL, Backend, PoolError, run_jobs
 
 
 def square(x: int) -> int:
@@ -54,3 +54,10 @@ def test_a_job_error_is_raised_as_it_is():
         run_jobs([1, 2, 3], fail, print, workers=2)
     with pytest.raises(ValueError, match="workers"):
         run_jobs([1], square, print, workers=0)
+
+
+def test_a_ray_backend_reserves_the_tasks_resources_unless_the_command_set_gpus():
+    ray = Backend("ray", address="10.0.0.1:6379")
+    assert ray.reserving(2.0, 0.5) == Backend("ray", address="10.0.0.1:6379", num_cpus=2.0, num_gpus=0.5)
+    assert Backend("ray", num_gpus=0.25).reserving(1.0, 0.5).num_gpus == 0.25  # --num-gpus wins
+    assert LOCAL.reserving(4.0, 1.0) is LOCAL  # the local pool reserves nothing

@@ -91,6 +91,15 @@ def test_rerun_resumes_without_duplicating(first_run, task, tmp_path):
     assert json.loads((out / "summary.json").read_text()) == first_run[1].summary
 
 
+def test_a_run_resumes_under_other_resource_reservations(first_run, task, tmp_path):
+    from kgn_bench.config import ResourceConfig
+
+    out = _copy(first_run[0], tmp_path)
+    reserving = replace(task, resources=ResourceConfig(num_cpus=2.0, num_gpus=0.5))
+    result = run_benchmark(reserving, "oracle", out, workers=1, progress=False)  # not "another run"
+    assert result.ran == 0 and result.summary == first_run[1].summary
+
+
 def test_a_trial_cut_short_by_a_kill_is_rerun(first_run, task, tmp_path):
     out = _copy(first_run[0], tmp_path)
     lines = (out / "trials.jsonl").read_text().splitlines(keepends=True)

@@ -82,8 +82,10 @@ def _weights_identity(detector: str) -> str | None:
 def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
     """What makes two runs the same run (and so resumable into one folder): task, seed, config and, for a
     learned detector, the hash of its weights."""
+    config = task.to_dict()
+    del config["resources"]  # where the trials run does not change them (config.ResourceConfig)
     identity = {"task": task.name, "protocol": task.protocol, "detector": detector, "seed": task.seed,
-                "trials": task.n_trials, "config": task.to_dict()}
+                "trials": task.n_trials, "config": config}
     weights = _weights_identity(detector)
     if weights is not None:
         identity["weights_sha256"] = weights
@@ -222,6 +224,7 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
         raise ValueError("workers must be ≥ 1")
     if record and backend.kind != "local":
         raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
+    backend = backend.reserving(task.resources.num_cpus, task.resources.num_gpus)
     cluster_ready = backend.prepare(_worker_init, (detector,))  # a Ray worker builds the detector meanwhile
     instance = build_detector(detector)  # fails here, in one line, before anything is written
     ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
