@@ -30,7 +30,8 @@ from kgn_bench.geometry import frame_from_xz, make_pose, rot_z
 from kgn_bench.sim.scene import GROUP_VISUAL, TABLE_HALF_SIZE, TIMESTEP, PhysicsError, Scene
 
 __all__ = ["PILE_BOX", "PileConfig", "PlacementConfig", "SettleStats", "add_pile_box", "initial_pose", "off_table",
-           "pack_objects", "pile_objects", "place_objects", "rectify_axisymmetric", "settle", "upright_rotation"]
+           "pack_objects", "pile_objects", "place_objects", "rectify_axisymmetric", "settle", "settle_to_rest",
+           "upright_rotation"]
 
 PILE_BOX = "pile_box"
 """Name of the mocap body holding the pile box's walls."""
@@ -51,6 +52,11 @@ class PlacementConfig:
     """Damping (N·s/m, N·m·s/rad) on the objects' free joints while settling only. Static rest poses do
     not depend on it; it removes the slow spin and roll that round contacts (a lying rod, a sphere
     pressed against a neighbour) otherwise accumulate numerically."""
+    hold_time: float = 0.5
+    hold_tol: float = 2e-3
+    hold_rounds: int = 6
+    """``settle_to_rest``: after each damped settle, ``hold_time`` s of undamped physics may move no object on
+    the table more than ``hold_tol`` m; otherwise it settles again, at most ``hold_rounds`` times."""
 
 
 @dataclass(frozen=True)
@@ -155,7 +161,7 @@ def pile_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = Pi
         scene.forward()
         settle(scene, replace(placement, settle_time_max=config.drop_settle), strict=False)
     _move_box(scene, _BOX_PARK)
-    settle(scene, placement, strict=False)
+    settle_to_rest(scene, placement)
 
 
 def pack_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = PileConfig(),
@@ -178,7 +184,7 @@ def pack_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = Pi
         else:
             raise PhysicsError(f"no free spot for object {i} ({shape.name}) in the packed square")
     scene.forward()
-    settle(scene, placement, strict=False)
+    settle_to_rest(scene, placement)
 
 
 @dataclass
@@ -253,6 +259,32 @@ def settle(scene: Scene, config: PlacementConfig = PlacementConfig(), strict: bo
     for i in off_table(scene) if strict else ():
         t = scene.object_pose(i)[:3, 3]
         raise PhysicsError(f"object {i} ({scene.objects[i].shape.name}) left the table at {np.round(t, 3)}")
+    for i in range(len(scene.objects)):
+        scene.data.qvel[scene.qvel_adr[i] : scene.qvel_adr[i] + 6] = 0.0
+    scene.forward()
+    return SettleStats(sim_time=steps * TIMESTEP, steps=steps)
+
+
+def settle_to_rest(scene: Scene, config: PlacementConfig = PlacementConfig()) -> SettleStats:
+    """``settle`` (not strict), then check that the objects stay where they came to rest: ``hold_time`` s of
+    physics without the settling damping may move no object still on the table more than ``hold_tol``
+    (its origin's displacement, world frame); otherwise settle again from the moving state, at most
+    ``hold_rounds`` times. A settle judges rest from the speeds of one instant and then zeroes them, so a
+    pile caught in a momentary balance (a ring on its rim against a rod, a sphere on a slope the damping
+    slowed) would otherwise start to topple once the trial begins, and the first grasp would close on the
+    place where an object was. Returns the total time simulated."""
+    steps = 0
+    hold_steps = max(1, int(config.hold_time / TIMESTEP))
+    for _ in range(config.hold_rounds):
+        steps += settle(scene, config, strict=False).steps
+        before = np.array([scene.object_pose(i)[:3, 3] for i in range(len(scene.objects))])
+        scene.step(hold_steps)
+        steps += hold_steps
+        moved = np.linalg.norm([scene.object_pose(i)[:3, 3] for i in range(len(scene.objects))] - before, axis=1)
+        gone = off_table(scene)
+        moved[gone] = 0.0
+        if np.all(moved <= config.hold_tol):
+            break
     for i in range(len(scene.objects)):
         scene.data.qvel[scene.qvel_adr[i] : scene.qvel_adr[i] + 6] = 0.0
     scene.forward()
