@@ -18,6 +18,21 @@ def tiny_dataset(tmp_path_factory):
     return root, config
 
 
+@pytest.fixture(scope="session")
+def ci_regression_oracle_run(tmp_path_factory):
+    """``tasks/ci_regression.toml`` run with the oracle on the local pool (2 workers), once per test session:
+    the CI regression check (test_ci_regression) and the Ray comparison (test_cluster) both read this folder,
+    neither writes to it."""
+    from pathlib import Path
+
+    from kgn_bench.cli import main
+
+    out = tmp_path_factory.mktemp("ci_regression") / "oracle"
+    task = Path(__file__).resolve().parents[1] / "tasks" / "ci_regression.toml"
+    assert main(["run", str(task), "--detector", "oracle", "--workers", "2", "--quiet", "--out", str(out)]) == 0
+    return out
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -150,6 +150,18 @@ def test_a_jobs_own_error_is_raised_as_it_is():
     assert set(got) <= {1, 2}
 
 
+def test_a_job_whose_worker_dies_on_every_retry_is_one_line_and_the_finished_results_are_kept():
+    """The lambda is pickled by value, so the workers need not import this test module."""
+    got = []
+    die = lambda job: os._exit(1) if job == "die" else int(job)  # noqa: E731
+    with pytest.raises(cluster.ClusterError) as e:
+        run_jobs(["1", "2", "die", "3"], die, got.append, workers=1, backend=LOCAL_RAY, what="the test jobs")
+    assert str(e.value) == (f"a Ray worker died while running the test jobs (WorkerCrashedError, after "
+                            f"{cluster.MAX_RETRIES} retries); the finished ones are kept, rerun the same command "
+                            "to resume")
+    assert got == [1, 2]  # in submission order with one job in flight; "3" was never started
+
+
 def test_an_unreachable_cluster_is_one_line_and_writes_nothing(tmp_path, capsys):
     address = f"127.0.0.1:{_free_port()}"
     for argv in (["run", str(TASKS / "ci_oracle.toml"), "--detector", "oracle", "--out", str(tmp_path / "run")],
@@ -216,12 +228,13 @@ def _kill_one_job_worker(started: Path, killed: list[int], stop: threading.Event
         time.sleep(0.1)
 
 
-def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worker_killed(ray_head, tmp_path):
-    """The driver is a `kgn-bench run --backend ray --address` process of its own, as on a real cluster."""
+def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worker_killed(ray_head, tmp_path,
+                                                                                          ci_regression_oracle_run):
+    """The driver is a `kgn-bench run --backend ray --address` process of its own, as on a real cluster; the
+    local run (the local pool, 2 workers) is the session's, which the CI regression check also reads."""
     address, env = ray_head
     task = str(TASKS / "ci_regression.toml")
-    local, on_ray = tmp_path / "local", tmp_path / "ray"
-    assert main(["run", task, "--detector", "oracle", "--workers", "2", "--quiet", "--out", str(local)]) == 0
+    local, on_ray = ci_regression_oracle_run, tmp_path / "ray"
     killed: list[int] = []
     stop = threading.Event()
     killer = threading.Thread(target=_kill_one_job_worker, args=(on_ray / "run.json", killed, stop), daemon=True)

@@ -208,13 +208,17 @@ def _free_port_pair() -> int:
 
 
 def test_replay_web_serves_the_viewer_on_localhost(trials, tmp_path):
+    import signal
     import subprocess
     import sys
     import urllib.request
 
     port = _free_port_pair()
     cmd = [sys.executable, "-m", "kgn_bench.cli", "replay", str(trials[0]), "--web", "--port", str(port)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    # A shell without job control starts background jobs with SIGINT ignored, and the child would inherit that
+    # (`pytest &`); restore the default so the child's Python turns Ctrl-C into KeyboardInterrupt as at a terminal.
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         line = proc.stdout.readline()
         assert line.strip() == f"serving {trials[0]}: open {web_viewer_url(port)}"
