@@ -19,18 +19,27 @@ def tiny_dataset(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def ci_regression_oracle_run(tmp_path_factory):
-    """``tasks/ci_regression.toml`` run with the oracle on the local pool (2 workers), once per test session:
-    the CI regression check (test_ci_regression) and the Ray comparison (test_cluster) both read this folder,
-    neither writes to it."""
+def session_run(tmp_path_factory):
+    """``session_run(task, detector)``: the run folder of bundled ``tasks/<task>.toml`` with ``detector`` on the
+    local pool (2 workers), run once per test session whoever asks first; readers must not write to it (the CI
+    regression check and the Ray comparison read the same oracle run)."""
     from pathlib import Path
 
     from kgn_bench.cli import main
 
-    out = tmp_path_factory.mktemp("ci_regression") / "oracle"
-    task = Path(__file__).resolve().parents[1] / "tasks" / "ci_regression.toml"
-    assert main(["run", str(task), "--detector", "oracle", "--workers", "2", "--quiet", "--out", str(out)]) == 0
-    return out
+    tasks = Path(__file__).resolve().parents[1] / "tasks"
+    runs = {}
+
+    def run(task: str, detector: str):
+        if (task, detector) not in runs:
+            out = tmp_path_factory.mktemp(task) / detector
+            argv = ["run", str(tasks / f"{task}.toml"), "--detector", detector, "--workers", "2", "--quiet",
+                    "--out", str(out)]
+            assert main(argv) == 0
+            runs[task, detector] = out
+        return runs[task, detector]
+
+    return run
 
 
 @pytest.fixture

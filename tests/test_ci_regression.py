@@ -18,13 +18,9 @@ CHECKS = {"ci_regression": ROOT / "results" / "ci_baseline.json", "ci_pile": ROO
 
 @pytest.mark.parametrize("task", list(CHECKS))
 @pytest.mark.parametrize("detector", ["kgnv2", "oracle"])
-def test_success_and_clear_rates_hold_against_the_baseline(task, detector, tmp_path, capsys, request):
+def test_success_and_clear_rates_hold_against_the_baseline(task, detector, session_run, capsys):
     path = ROOT / "tasks" / f"{task}.toml"
-    if (task, detector) == ("ci_regression", "oracle"):  # the session's run, which test_cluster compares with Ray
-        out = request.getfixturevalue("ci_regression_oracle_run")
-    else:
-        out = tmp_path / detector
-        assert main(["run", str(path), "--detector", detector, "--workers", "2", "--quiet", "--out", str(out)]) == 0
+    out = session_run(task, detector)
     capsys.readouterr()
     rc = main(["check", str(out), "--baseline", str(CHECKS[task])])
     report = capsys.readouterr().out
