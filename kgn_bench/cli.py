@@ -277,6 +277,14 @@ def _cmd_replay(args) -> int:
     path = args.run / "recording.rrd" if args.run.is_dir() else args.run
     if not path.is_file():
         raise RecordingError(f"{path} not found: run with --record first")
+    if args.still:
+        from kgn_bench.viz.still import save_still
+
+        _writable_file(args.still, "still")
+        obs = save_still(path, args.still, trial=args.trial, attempt=args.attempt)
+        print(f"wrote {args.still} (trial {args.trial}, attempt {args.attempt}, {len(obs.candidates) // 4} "
+              f"candidates drawn)")
+        return 0
     if args.save:
         _writable_file(args.save, "recording copy")
         copy_recording(path, args.save)
@@ -649,6 +657,12 @@ def _add_closed_loop(sub) -> None:
     replay = sub.add_parser("replay", help="open a run's rerun recording, serve it to a browser, or save a copy")
     replay.add_argument("run", type=Path, help="run folder or .rrd file")
     replay.add_argument("--save", type=Path, help="copy the recording here instead of opening the viewer")
+    replay.add_argument("--still", type=Path, metavar="PNG",
+                        help="write one attempt's camera image with its candidates and executed grasp drawn on it "
+                             "(no viewer needed)")
+    replay.add_argument("--trial", type=_int_at_least(0), default=0, help="with --still: the trial (default 0)")
+    replay.add_argument("--attempt", type=_int_at_least(1), default=1,
+                        help="with --still: the attempt, counted from 1 (default 1)")
     replay.add_argument("--web", action="store_true",
                         help="serve the recording and rerun's web viewer on localhost (for a headless server: "
                              "open the printed URL, e.g. through SSH port forwarding); Ctrl-C stops it")

@@ -656,6 +656,7 @@ class TrialRecording:
         self._rec.log_geometry(model)
         self._rec.log_state(model, data)
         self._data = data
+        self._observed_at = float(data.time)
         ticks = iter(range(1, 1 << 62))
 
         def on_tick() -> None:
@@ -665,13 +666,15 @@ class TrialRecording:
         executor.on_tick = on_tick
 
     def observation(self, rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray) -> None:
-        self._rec.log_observation(rgb, depth, K, camera_pose, self._data.time)
+        self._observed_at = float(self._data.time)
+        self._rec.log_observation(rgb, depth, K, camera_pose, self._observed_at)
 
     def attempt(self, number: int, attempt: dict, poses_world: np.ndarray | None, widths: np.ndarray | None,
                 scores: np.ndarray | None, selected: int | None) -> None:
-        """The candidates of attempt ``number`` (world frame, if any) and its outcome line."""
+        """The candidates of attempt ``number`` (world frame, if any), logged at the time of the observation
+        they were detected in, and its outcome line, logged now (when the attempt has ended)."""
         if poses_world is not None and len(poses_world):
-            self._rec.log_candidates(poses_world, widths, scores, selected, self._data.time)
+            self._rec.log_candidates(poses_world, widths, scores, selected, self._observed_at)
         outcome = "success" if attempt["success"] else attempt["reason"]
         what = f" ({attempt['object']})" if attempt["object"] else ""
         self._rec.log_outcome(f"attempt {number}: {outcome}{what} {attempt['detail']}".strip(), self._data.time)
