@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from kgn_bench.config import ConfigError, load_task
@@ -9,13 +11,14 @@ from kgn_bench.shapes import is_known, known_names, sample_shape
 from kgn_bench.shapes.library import (
     PYBULLET_EXTRAS,
     find_object,
+    library_roots,
     list_objects,
     load_object,
     packaged,
     pybullet_numbers,
     set_names,
 )
-from kgn_bench.shapes.mesh_object import ObjectError
+from kgn_bench.shapes.mesh_object import MANIFEST, ObjectError
 
 
 def test_imported_objects_are_found(object_library):
@@ -59,3 +62,36 @@ def test_tasks_name_imported_objects_and_sets(object_library, load_task_text):
         load_task_text(_task('["teapot"]'))
     with pytest.raises(ConfigError, match="unknown object set 'ycb'"):
         load_task_text(_task('"ycb"'))
+
+
+def test_the_real_object_test_set_ships_imported(monkeypatch, tmp_path):
+    monkeypatch.setenv("KGN_BENCH_OBJECTS", str(tmp_path / "empty"))
+    bundled = library_roots()[1]
+    names = set_names("pybullet_test")
+    assert [find_object(n) for n in names] == [bundled / n for n in names]
+    for name in ("pb_000", "pb_duck"):
+        obj = load_object(name)
+        assert obj.name == name and len(obj.verified_grasps) > 50
+    assert not list(bundled.glob("*/preview.png"))  # drawn again by an import, not shipped
+
+
+def test_an_import_of_a_bundled_object_remakes_its_files(monkeypatch, tmp_path):
+    """`objects import-set` writes into the user's library even though the package holds the object, and
+    what it writes is what ships (the stage times in the manifest aside)."""
+    from kgn_bench.objects.pybullet_set import import_set
+
+    user = tmp_path / "lib"
+    monkeypatch.setenv("KGN_BENCH_OBJECTS", str(user))
+    assert import_set(names=["pb_000"], progress=False) == {}
+    made, shipped = user / "pb_000", library_roots()[1] / "pb_000"
+    assert find_object("pb_000") == made
+    files = sorted(p.relative_to(shipped) for p in shipped.rglob("*") if p.is_file())
+    assert files and files == sorted(p.relative_to(made) for p in made.rglob("*") if p.is_file() and
+                                     p.name != "preview.png")
+    for rel in files:
+        if rel.name == MANIFEST:
+            a, b = (json.loads((root / rel).read_text()) for root in (made, shipped))
+            a.pop("timing_s"), b.pop("timing_s")
+            assert a == b
+        else:
+            assert (made / rel).read_bytes() == (shipped / rel).read_bytes(), rel

@@ -4,7 +4,8 @@ An object is a folder ``<root>/<name>/`` (``shapes.mesh_object``). The roots are
 
 1. the user's library: ``$KGN_BENCH_OBJECTS`` if set, else ``~/.local/share/kgn-bench/objects``
    (``kgn-bench objects add`` and ``kgn-bench objects import-set`` write here);
-2. the objects bundled with the package (``assets/objects/``, installed as ``kgn_bench.assets``).
+2. the objects bundled with the package (``assets/objects/``, installed as ``kgn_bench.assets``): the
+   real-object test set ``pybullet_test``, imported.
 
 A task names an object by its folder name, exactly as it names a primitive (``[objects] set = ["mug_scan"]``),
 or a whole packaged set by the set's name (``[objects] set = "pybullet_test"``, ``OBJECT_SETS``); the names of
