@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from kgn_bench.errors import KGNBenchError
+from kgn_bench.geometry import invert_pose, project, transform_points
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.scene import Scene
 
@@ -58,13 +59,11 @@ def check_view(renderer: SceneRenderer, scene: Scene, camera_pose: np.ndarray, t
     """Raise ``ViewError`` (naming ``label``) unless the camera at ``camera_pose`` sees the workspace about
     ``target`` (module docstring); renders once with ``renderer`` (of ``scene``, objects away)."""
     pts = workspace_points(np.asarray(target, dtype=float))
-    T = np.linalg.inv(camera_pose)
-    cam = pts @ T[:3, :3].T + T[:3, 3]
-    K = scene.intrinsics.K
+    cam = transform_points(invert_pose(camera_pose), pts)
     w, h = scene.intrinsics.width, scene.intrinsics.height
     front = cam[:, 2] > 1e-6
     uv = np.full((len(pts), 2), -1.0)
-    uv[front] = (cam[front, :2] / cam[front, 2:3]) @ K[:2, :2].T + K[:2, 2]
+    uv[front] = project(cam[front], scene.intrinsics.K)
     u, v = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
     inside = front & (u >= 0) & (u < w) & (v >= 0) & (v < h)
     if inside.mean() < MIN_VISIBLE:

@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from kgn_bench.geometry import project
+from kgn_bench.geometry import invert_pose, project, transform_points
 from kgn_bench.viz.images import save_png
 from kgn_bench.viz.recording import RecordingError
 
@@ -140,9 +140,9 @@ def read_observations(path: str | Path, trial: int = 0) -> list[Observation]:
 
 def _draw_strips(img: np.ndarray, strips, camera_pose: np.ndarray, K: np.ndarray, thickness: int,
                  color: tuple[int, int, int] | None = None) -> None:
-    R, t = camera_pose[:3, :3], camera_pose[:3, 3]
+    world_to_cam = invert_pose(camera_pose)
     for points, rgba in strips:
-        cam = (points - t) @ R  # R_wcᵀ (p − t) for row vectors
+        cam = transform_points(world_to_cam, points)
         if np.any(cam[:, 2] <= 1e-3):
             continue
         uv = np.round(project(cam, K)).astype(np.int32)
