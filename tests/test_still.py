@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from kgn_bench.cli import main
-from kgn_bench.viz.recording import RecordingError
+from kgn_bench.viz.recording import SELECTED_COLOR, RecordingError
 from kgn_bench.viz.still import draw_still, read_observations, save_still
 
-CYAN = np.array([0, 200, 255], dtype=np.uint8)
+CYAN = np.array(SELECTED_COLOR, dtype=np.uint8)
 
 
 @pytest.fixture(scope="module")

@@ -53,6 +53,7 @@ from kgn_bench.io import atomic_write
 __all__ = [
     "APPLICATION_ID",
     "MAX_POINTS",
+    "SELECTED_COLOR",
     "STEM_LENGTH",
     "TIMELINE",
     "Recorder",
@@ -85,7 +86,8 @@ _PLANE_HALF_SIZE = 5.0
 """Half extent (m) drawn for an infinite MuJoCo plane (size 0)."""
 _CANDIDATE_RADIUS = 0.001
 _SELECTED_RADIUS = 0.003
-_SELECTED_COLOR = (0, 200, 255)
+SELECTED_COLOR = (0, 200, 255)
+"""RGB of the executed grasp's sketch (cyan)."""
 _POINT_RADIUS = 0.001
 _ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 
@@ -461,7 +463,7 @@ class Recorder:
         else:
             label = f"#{selected} score {scores[selected]:.3g} width {widths[selected] * 1000:.0f} mm"
             self._stream.log("world/selected", rr.LineStrips3D(
-                segments[selected].astype(np.float32), colors=[_SELECTED_COLOR], radii=_SELECTED_RADIUS,
+                segments[selected].astype(np.float32), colors=[SELECTED_COLOR], radii=_SELECTED_RADIUS,
                 labels=[label] + [""] * 3, show_labels=True))
 
     def log_outcome(self, text: str, time: float, level: str = "INFO") -> None:

@@ -27,7 +27,7 @@ import numpy as np
 
 from kgn_bench.geometry import invert_pose, project, transform_points
 from kgn_bench.viz.images import save_png
-from kgn_bench.viz.recording import RecordingError
+from kgn_bench.viz.recording import SELECTED_COLOR, RecordingError
 
 __all__ = ["Observation", "draw_still", "read_observations", "save_still"]
 
@@ -78,7 +78,7 @@ def _rows(chunks, entity: str) -> list[tuple[float, dict]]:
 
 def _strips(row: dict) -> list[tuple[np.ndarray, np.ndarray]]:
     strips = row.get("LineStrips3D:strips") or []
-    colors = row.get("LineStrips3D:colors") or [0x00C8FFFF]
+    colors = row.get("LineStrips3D:colors") or [int.from_bytes(bytes([*SELECTED_COLOR, 255]), "big")]
     return [(np.asarray(s, dtype=np.float64), _rgba(colors[min(i, len(colors) - 1)])) for i, s in enumerate(strips)]
 
 
@@ -111,6 +111,8 @@ def read_observations(path: str | Path, trial: int = 0) -> list[Observation]:
     candidates = _rows(chunks, "/world/candidates")
     selected = _rows(chunks, "/world/selected")
     outcomes = [r for r in _rows(chunks, "/outcome") if r[1].get("TextLog:text")]
+    if not cameras:
+        raise RecordingError(f"{path}: trial {trial} has images but no camera pinhole")
     times = [t for t, _ in images] + [np.inf]
     result = []
     for k, (t, row) in enumerate(images):
@@ -120,8 +122,6 @@ def read_observations(path: str | Path, trial: int = 0) -> list[Observation]:
         if buffer.size % (h * w):
             raise RecordingError(f"{path}: trial {trial}: image {k} holds {buffer.size} bytes for {w}×{h}")
         rgb = buffer.reshape(h, w, -1)[..., :3].copy()
-        if not cameras:
-            raise RecordingError(f"{path}: trial {trial} has images but no camera pinhole")
         cam_row = ([r for tc, r in cameras if tc <= t] or [cameras[0][1]])[-1]
         pose = np.eye(4)
         pose[:3, :3] = _mat3(cam_row["Transform3D:mat3x3"][0])
@@ -138,24 +138,23 @@ def read_observations(path: str | Path, trial: int = 0) -> list[Observation]:
     return result
 
 
-def _draw_strips(img: np.ndarray, strips, camera_pose: np.ndarray, K: np.ndarray, thickness: int,
-                 color: tuple[int, int, int] | None = None) -> None:
+def _draw_strips(img: np.ndarray, strips, camera_pose: np.ndarray, K: np.ndarray, thickness: int) -> None:
     world_to_cam = invert_pose(camera_pose)
     for points, rgba in strips:
         cam = transform_points(world_to_cam, points)
         if np.any(cam[:, 2] <= 1e-3):
             continue
         uv = np.round(project(cam, K)).astype(np.int32)
-        c = color if color is not None else tuple(int(v) for v in rgba[:3])
-        cv2.polylines(img, [uv.reshape(-1, 1, 2)], False, c, thickness, cv2.LINE_AA)
+        cv2.polylines(img, [uv.reshape(-1, 1, 2)], False, tuple(int(v) for v in rgba[:3]), thickness, cv2.LINE_AA)
 
 
 def draw_still(obs: Observation, caption: str = "") -> np.ndarray:
-    """The observation's image with its candidates (their logged colours, 1 px) and the executed grasp
-    (cyan, 3 px) drawn on it, and ``caption`` (default: the attempt's outcome) on a dark band at the top."""
+    """The observation's image with its candidates (1 px) and the executed grasp (3 px) drawn on it in their
+    logged colours (score colours; ``recording.SELECTED_COLOR``), and ``caption`` (default: the attempt's
+    outcome) on a dark band at the top."""
     img = np.ascontiguousarray(obs.rgb.copy())
     _draw_strips(img, obs.candidates, obs.camera_pose, obs.K, 1)
-    _draw_strips(img, obs.selected, obs.camera_pose, obs.K, 3, color=(0, 200, 255))
+    _draw_strips(img, obs.selected, obs.camera_pose, obs.K, 3)
     text = caption or obs.outcome
     if text:
         cv2.rectangle(img, (0, 0), (img.shape[1], 22), (30, 30, 30), -1)
