@@ -287,6 +287,28 @@ def test_an_off_centre_grasp_is_centred_on_the_box(points, ik):
     assert select_grasp(*args, replace(CFG, centre_range=0.005), EXEC, None, seen).grasp[1, 3] == pytest.approx(0.007)
 
 
+def test_centring_onto_unseen_space_needs_the_object_seen_whole(points, ik):
+    # 1.2 cm off-centre across the 4 cm box; the camera saw a surface 8 cm above the table beyond world y ≈ 3 cm,
+    # so the +z (left) finger that the centring moves inwards would stand in unseen space
+    side = _pose((0.0, 0.012, 0.02))
+    depth = np.full((480, 640), 1.0, np.float32)
+    depth[:225] = 0.92
+    blind = DepthView(depth, K, DOWN_CAM)
+    seen = DepthView(np.full((480, 640), 1.0, np.float32), K, DOWN_CAM)
+    cfg = replace(CFG, centre_range=0.02)
+
+    def centred_y(width, view):
+        args = (np.stack([side]), np.array([width]), np.ones(1), np.full(1, np.nan), points, ik)
+        return select_grasp(*args, cfg, EXEC, None, view).grasp[1, 3]
+
+    # a 15 cm grasp that sees 4 cm between its jaws may be seeing one wall of a wider object: not centred
+    # into the blind space, centred where that space was seen free
+    assert centred_y(0.15, blind) == pytest.approx(0.012)
+    assert abs(centred_y(0.15, seen)) < 0.002
+    # a 6 cm grasp sees the whole of what it expects: centred although the finger goes into the object's shadow
+    assert abs(centred_y(0.06, blind)) < 0.002
+
+
 def test_level_poses_makes_near_top_down_closing_axes_horizontal():
     tilt = make_pose(DOWN, (0.0, 0.0, 0.02))
     # tip the grasp 8° about its own y axis: the closing axis rises, the approach leans

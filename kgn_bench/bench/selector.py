@@ -45,7 +45,12 @@ by ``dz = (z_min + z_max) / 2``, clipped to ±``centre_range``, where [z_min, z_
 observed points in the closing region at the full jaw opening; it is kept if it passes the checks again. Only
 when the closing axis is within ``CENTRE_VIEW_DEG`` of perpendicular to the camera ray through the grasp
 origin: then both ends of the object along z face the camera, and the seen extent is the object's. (A closing
-axis along the ray sees only the near face, whose extent says nothing about the far one.)
+axis along the ray sees only the near face, whose extent says nothing about the far one.) And only when the
+finger that the shift moves towards the object lands in space the camera saw free (``centring_blind``): a
+seen extent that is one wall of a wide object (a lying tube whose far side the camera cannot see) would
+otherwise put that finger onto the unseen part. That finger is checked only when the seen extent is under
+``CENTRE_MIN_SPAN`` of the candidate's width: beside an object seen whole it stands in the object's own
+shadow by design, like the fingers of every grasp.
 
 Raw mode (``selector.mode = "raw"``, ``config.RAW_SELECTOR``): no levelling, pose search, centring, bite,
 palm margin or occlusion check; the candidate that passes width, collision, enclosure and IK is executed at
@@ -72,14 +77,19 @@ from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q, WORKSPACE_HALF
 
-__all__ = ["CENTRE_VIEW_DEG", "REJECTIONS", "WORKSPACE_TOP", "DepthView", "GraspSelector", "Selection", "centre_offset",
-           "level_poses", "near_failed", "score_candidates", "search_offsets", "select_grasp", "valid_candidates"]
+__all__ = ["CENTRE_MIN_SPAN", "CENTRE_VIEW_DEG", "REJECTIONS", "WORKSPACE_TOP", "DepthView", "GraspSelector",
+           "Selection", "centre_offset", "centring_blind", "closing_z", "level_poses", "near_failed",
+           "score_candidates", "search_offsets", "select_grasp", "valid_candidates"]
 
 REJECTIONS = ("workspace", "repeat", "width", "collision", "occluded", "enclosure", "ik")
 WORKSPACE_TOP = 0.4
 """Highest grasp origin (m above the table top) the selector accepts."""
 CENTRE_VIEW_DEG = 45.0
 """Centring applies when the closing axis is at most this far from perpendicular to the camera ray."""
+
+CENTRE_MIN_SPAN = 0.5
+"""A seen extent along the closing axis under this fraction of the candidate's width may be part of the object
+only (one wall of a lying tube): the centring then needs the finger it moves to land in seen space."""
 
 
 @dataclass(frozen=True)
@@ -273,11 +283,29 @@ def centre_offset(local: np.ndarray, open_w: float, closing_world: np.ndarray, r
     """
     if abs(float(closing_world @ ray_world)) > np.sin(np.deg2rad(CENTRE_VIEW_DEG)):
         return 0.0
-    region = GRIPPER.closing_region(open_w)
-    z = local[np.all(np.abs(local - region.centre) < region.half, axis=1), 2]
+    z = closing_z(local, open_w)
     if len(z) < min_points:
         return 0.0
     return float(np.clip((z.min() + z.max()) / 2.0, -limit, limit))
+
+
+def closing_z(local: np.ndarray, open_w: float) -> np.ndarray:
+    """The z (closing axis) coordinates of the grasp-frame points ``local`` inside
+    ``GRIPPER.closing_region(open_w)``."""
+    region = GRIPPER.closing_region(open_w)
+    return local[np.all(np.abs(local - region.centre) < region.half, axis=1), 2]
+
+
+def centring_blind(pose: np.ndarray, shift: np.ndarray, open_w: float, view: DepthView, margin: float) -> bool:
+    """Whether the finger that a centring ``shift`` (grasp frame of the world ``pose``, its z the centring
+    step) moves towards the observed points would stand in space the camera cannot see: any of its box's
+    sample points lies more than ``margin`` behind the observed surface (``DepthView.hidden``). A shift by
+    dz > 0 moves the −z (right) finger inwards, dz < 0 the +z (left) one. The centring trusts the seen extent
+    to be the object's; where that finger goes blind, the object may go on unseen."""
+    side = -1 if shift[2] > 0 else 1
+    samples = _box_samples(GRIPPER.finger_box(side, open_w)) + shift
+    world = samples @ pose[:3, :3].T + pose[:3, 3]
+    return bool(view.hidden(world, margin).any())
 
 
 def level_poses(poses: np.ndarray, max_tilt_deg: float) -> np.ndarray:
@@ -420,7 +448,10 @@ class GraspSelector:
                                cfg.enclosed_points)
             centred = shift + np.array([0.0, 0.0, dz])
             if dz != 0.0 and _failures(pose, centred[None], *args)[0] == 0:
-                shift = centred
+                z = closing_z(local0 - shift, open_w)
+                partial = z.max() - z.min() < CENTRE_MIN_SPAN * w  # perhaps one wall of the object
+                if not (partial and centring_blind(pose, centred, open_w, view, cfg.shadow_margin)):
+                    shift = centred
         moved = pose.copy()
         moved[:3, 3] += R @ shift
         return moved, 0
