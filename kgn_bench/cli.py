@@ -241,17 +241,20 @@ def _cmd_report(args) -> int:
 def _cmd_benchmark(args) -> int:
     from dataclasses import replace
 
-    from kgn_bench.bench.benchmark import load_plan, run_plan
+    from kgn_bench.bench.benchmark import load_plan, run_plan, run_viewpoints
     from kgn_bench.bench.report import build_report, environment_warnings, load_summaries
 
     plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
-    plan = replace(plan, tasks=tuple(_apply_settings(t, args.set) for t in plan.tasks))
+    plan = replace(plan, tasks=tuple(_apply_settings(t, args.set) for t in plan.tasks),
+                   viewpoints=() if args.no_viewpoints else tuple(
+                       replace(v, task=_apply_settings(v.task, args.set)) for v in plan.viewpoints))
     backend = _backend(args)
     _writable(args.runs, "runs folder")
     _writable(args.out, "report folder")
     folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet, backend=backend)
+    studies = run_viewpoints(plan, args.runs, workers=args.workers, progress=not args.quiet, backend=backend)
     summaries = load_summaries(folders)
-    text, _ = build_report(summaries, args.out or args.runs)
+    text, _ = build_report(summaries, args.out or args.runs, studies)
     _print_report(text, environment_warnings(summaries), args.out or args.runs)
     return 0
 
@@ -644,6 +647,8 @@ def _add_closed_loop(sub) -> None:
     bm.add_argument("--detectors", nargs="+", help="only these detectors of the plan")
     bm.add_argument("--runs", type=Path, default=Path("runs/benchmark"), help="run folders (default runs/benchmark)")
     bm.add_argument("--out", type=Path, help="report folder (default: the runs folder)")
+    bm.add_argument("--no-viewpoints", action="store_true",
+                    help="skip the plan's viewpoint studies (camera sweeps; RUNS/viewpoints)")
     bm.set_defaults(func=_cmd_benchmark)
     rep = sub.add_parser("report", help="the benchmark table, failure reasons and bar chart from run folders")
     rep.add_argument("runs", type=Path, nargs="+", help="run folders, or folders holding run folders")

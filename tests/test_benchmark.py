@@ -20,6 +20,19 @@ def test_shipped_plan_loads_and_can_be_restricted():
     assert [t.name for t in plan.tasks][:1] == ["single_object"]
     only = load_plan(TASKS / "benchmark.toml", tasks=["multi_object"], detectors=["kgnv2"])
     assert [t.name for t in only.tasks] == ["multi_object"] and only.detectors == ("kgnv2",)
+    # the viewpoint study: camera sweeps of single_object, kept only when that task is in the plan
+    assert [v.name for v in plan.viewpoints] == ["elevation_az0", "azimuth_el45", "distance"]
+    elevation = plan.viewpoints[0]
+    assert elevation.values == ("35", "45", "60", "75", "90") and elevation.task.n_trials == 18
+    assert (elevation.task.camera.azimuth_deg, elevation.task.camera.distance) == (0.0, 1.0)
+    assert only.viewpoints == ()
+    assert len(load_plan(TASKS / "benchmark.toml", tasks=["single_object"]).viewpoints) == 3
+
+
+VIEW = "\n[[benchmark.viewpoints]]\ntask = 'ci_oracle'\n"
+
+
+PLAN = "[benchmark]\ntasks = ['ci_oracle']\ndetectors = ['oracle']"
 
 
 @pytest.mark.parametrize("body, fragment", [
@@ -28,6 +41,13 @@ def test_shipped_plan_loads_and_can_be_restricted():
     ("[benchmark]\ntasks = ['nope']\ndetectors = ['oracle']", "no such task file"),
     ("[benchmark]\ntasks = ['ci_oracle']\ndetectors = ['oracle']\nspeed = 2", "unknown key 'speed'"),
     ("[bench]\ntasks = ['ci_oracle']", "exactly one [benchmark] table"),
+    (PLAN + VIEW + "param = 'selector.level_deg'\nvalues = [0]", "param must be a camera setting"),
+    (PLAN + VIEW + "param = 'camera.elevation_deg'\nvalues = []", "values must be a non-empty list"),
+    (PLAN + VIEW + "param = 'camera.elevation_deg'\nvalues = [45]\nspin = 1", "unknown key 'spin'"),
+    (PLAN + VIEW + "param = 'camera.elevation_deg'\nvalues = [45]\ntrials = 0", "trials must be a positive"),
+    (PLAN + VIEW + "param = 'camera.roll_deg'\nvalues = [45]", "unknown setting 'camera.roll_deg'"),
+    (PLAN + VIEW + "param = 'camera.elevation_deg'\nvalues = [45]" + VIEW + "param = 'camera.elevation_deg'\n"
+     "values = [60]", "the same name"),
 ])
 def test_bad_plans_name_the_problem(tmp_path, body, fragment):
     plan = tmp_path / "plan.toml"
@@ -56,6 +76,34 @@ def test_tiny_plan_runs_every_pair_and_reports(tmp_path, capsys):
     # the report command rebuilds it from the folder of runs
     assert main(["report", str(tmp_path / "runs"), "--out", str(tmp_path / "rep")]) == 0
     assert (tmp_path / "rep" / "benchmark.md").read_text().count("| oracle |") == 3  # table, failures, per object
+
+
+def test_a_plans_viewpoint_study_runs_for_every_detector_and_is_reported(tmp_path, capsys):
+    task = (TASKS / "ci_oracle.toml").read_text().replace('name = "ci_oracle"', 'name = "tiny"')
+    (tmp_path / "tiny.toml").write_text(task.split("[objects]")[0] + '[objects]\nset = ["sphere"]\n')
+    plan = tmp_path / "plan.toml"
+    plan.write_text("[benchmark]\ntasks = ['tiny']\ndetectors = ['random', 'oracle']\n"
+                    "[[benchmark.viewpoints]]\ntask = 'tiny'\nparam = 'camera.elevation_deg'\nvalues = [45, 90]\n"
+                    "set = {'camera.azimuth_deg' = 0}\n")
+    runs = tmp_path / "runs"
+    assert main(["benchmark", str(plan), "--runs", str(runs), "--workers", "1", "--quiet", "--no-viewpoints"]) == 0
+    assert not (runs / "viewpoints").exists()
+    capsys.readouterr()
+    assert main(["benchmark", str(plan), "--runs", str(runs), "--workers", "1", "--quiet"]) == 0
+    study = runs / "viewpoints" / "tiny_elevation_deg"
+    for det in ("random", "oracle"):
+        for value in ("45", "90"):
+            run = json.loads((study / det / f"camera.elevation_deg={value}" / "run.json").read_text())
+            assert run["config"]["camera"]["elevation_deg"] == float(value)
+            assert run["config"]["camera"]["azimuth_deg"] == 0.0
+    report = (runs / "benchmark.md").read_text()
+    section = report.split("## Viewpoint study")[1].split("## Failure reasons")[0]
+    assert "### tiny_elevation_deg: tiny, camera.elevation_deg (distance 0.8 m, azimuth 0°)" in section
+    assert "| camera.elevation_deg | random | oracle |" in section
+    assert section.count("\n| 45 | ") == 1 and section.count("\n| 90 | ") == 1
+    assert (runs / "viewpoints_tiny_elevation_deg.png").read_bytes() == (study / "sweep.png").read_bytes()
+    payload = json.loads((runs / "benchmark.json").read_text())["viewpoints"]["tiny_elevation_deg"]
+    assert payload["values"] == ["45", "90"] and set(payload["detectors"]) == {"random", "oracle"}
 
 
 def test_benchmark_rejects_a_bad_setting_before_running(tmp_path, capsys):

@@ -6,6 +6,18 @@ A plan file (``tasks/benchmark.toml``)::
     tasks = ["single_object", "single_household", "multi_object", "multi_household"]   # tasks/<name>.toml
     detectors = ["kgnv2", "kgn", "kgn_depth", "antipodal", "random", "oracle"]
 
+A plan may add viewpoint studies, each a camera sweep (``bench.sweep``) of one task for every detector::
+
+    [[benchmark.viewpoints]]
+    task = "single_object"
+    param = "camera.elevation_deg"        # or camera.azimuth_deg, camera.distance
+    values = [35, 45, 60, 75, 90]
+    set = {"camera.azimuth_deg" = 0, "camera.distance" = 1.0}   # optional: the rest of the camera
+    trials = 3                            # optional: the task's [task] trials
+
+run into ``RUNS/viewpoints/<name>`` (``name``: ``<task>_<param's last part>`` unless given) after the tasks;
+restricting the plan to some tasks keeps the studies of those tasks only.
+
 A plan is named by its path or its bundled name (``benchmark``); its task names are looked up beside the
 plan file, then among the bundled tasks. A task named ``name@mode`` is task ``name`` with ``selector.mode`` set
 to ``mode`` (``raw`` or ``assisted``), run and reported as ``name_mode``: one task file gives both the
@@ -22,16 +34,31 @@ from kgn_bench.config import SELECTOR_MODES, ConfigError, TaskConfig, apply_over
 from kgn_bench.pool import LOCAL, Backend
 
 from .runner import run_benchmark
+from .sweep import SweepPoint, run_detector_sweep
 
-__all__ = ["BenchmarkPlan", "load_plan", "run_plan"]
+__all__ = ["BenchmarkPlan", "Viewpoints", "load_plan", "run_plan", "run_viewpoints"]
+
+VIEWPOINT_KEYS = ("task", "param", "values", "set", "trials", "name")
+
+
+@dataclass(frozen=True)
+class Viewpoints:
+    """One viewpoint study of a plan: ``task`` (its other settings applied) swept over camera setting ``param``
+    at ``values``, reported as ``name``."""
+
+    name: str
+    task: TaskConfig
+    param: str
+    values: tuple[str, ...]
 
 
 @dataclass(frozen=True)
 class BenchmarkPlan:
-    """Tasks (loaded) and detector names, in report order."""
+    """Tasks (loaded), detector names and viewpoint studies, in report order."""
 
     tasks: tuple[TaskConfig, ...]
     detectors: tuple[str, ...]
+    viewpoints: tuple[Viewpoints, ...] = ()
 
 
 def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] | None = None) -> BenchmarkPlan:
@@ -43,9 +70,10 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
     section = raw.get("benchmark")
     if not isinstance(section, dict) or set(raw) != {"benchmark"}:
         raise ConfigError(f"{path}: a plan has exactly one [benchmark] table")
-    unknown = set(section) - {"tasks", "detectors"}
+    unknown = set(section) - {"tasks", "detectors", "viewpoints"}
     if unknown:
-        raise ConfigError(f"{path}: [benchmark] unknown key {sorted(unknown)[0]!r} (known: tasks, detectors)")
+        raise ConfigError(f"{path}: [benchmark] unknown key {sorted(unknown)[0]!r} (known: tasks, detectors, "
+                          "viewpoints)")
     names = section.get("tasks")
     dets = section.get("detectors")
     for key, value in (("tasks", names), ("detectors", dets)):
@@ -60,9 +88,45 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
             detector_factory(d)
         except ValueError as e:
             raise ConfigError(f"{path}: {e}") from None
+    studies = section.get("viewpoints", [])
+    if not isinstance(studies, list) or not all(isinstance(v, dict) for v in studies):
+        raise ConfigError(f"{path}: [benchmark] viewpoints must be a list of tables ([[benchmark.viewpoints]])")
+    viewpoints = tuple(_viewpoints(path, k, v) for k, v in enumerate(studies)
+                       if not tasks or v.get("task") in tasks)  # --tasks: the studies of those tasks only
+    if len({v.name for v in viewpoints}) < len(viewpoints):
+        raise ConfigError(f"{path}: two viewpoint studies have the same name; give one a name = ...")
     names = [n for n in names if not tasks or n in tasks]
     dets = [d for d in dets if not detectors or d in detectors]
-    return BenchmarkPlan(tuple(_plan_task(path, n) for n in names), tuple(dets))
+    return BenchmarkPlan(tuple(_plan_task(path, n) for n in names), tuple(dets), viewpoints)
+
+
+def _viewpoints(plan: Path, k: int, raw: dict) -> Viewpoints:
+    """The ``k``-th ``[[benchmark.viewpoints]]`` table (module docstring), every value checked."""
+    where = f"{plan}: viewpoint study {k + 1}"
+    unknown = set(raw) - set(VIEWPOINT_KEYS)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key {sorted(unknown)[0]!r} (known: {', '.join(VIEWPOINT_KEYS)})")
+    param, values, settings = raw.get("param"), raw.get("values"), raw.get("set", {})
+    if not isinstance(param, str) or not param.startswith("camera."):
+        raise ConfigError(f"{where}: param must be a camera setting, e.g. \"camera.elevation_deg\"")
+    if not isinstance(values, list) or not values or not all(isinstance(v, (int, float)) for v in values):
+        raise ConfigError(f"{where}: values must be a non-empty list of numbers")
+    if not isinstance(settings, dict):
+        raise ConfigError(f"{where}: set must be a table of setting = value")
+    trials = raw.get("trials")
+    if trials is not None and (not isinstance(trials, int) or isinstance(trials, bool) or trials < 1):
+        raise ConfigError(f"{where}: trials must be a positive integer")
+    task = _plan_task(plan, str(raw.get("task", "")))
+    task = task.with_overrides(trials=trials, seed=None) if trials else task
+    for key, value in settings.items():
+        task = apply_override(task, key, str(value))
+    texts = tuple(str(v) for v in values)
+    for v in texts:
+        apply_override(task, param, v)  # a bad value fails here, before any trial runs
+    name = raw.get("name", f"{task.name}_{param.partition('.')[2]}")
+    if not isinstance(name, str) or not name or "/" in name:
+        raise ConfigError(f"{where}: name must be a folder name")
+    return Viewpoints(name, task, param, texts)
 
 
 def _plan_task(plan: Path, entry: str) -> TaskConfig:
@@ -87,3 +151,12 @@ def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool =
             run_benchmark(task, det, folder, workers=workers, progress=progress, backend=backend)
             folders.append(folder)
     return folders
+
+
+def run_viewpoints(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True,
+                   backend: Backend = LOCAL) -> dict[str, tuple[Viewpoints, dict[str, list[SweepPoint]]]]:
+    """Run every viewpoint study of ``plan`` for every detector into ``runs``/viewpoints/name (each a
+    ``run_detector_sweep``, so its table and plot are there too); returns name → (study, points per detector)."""
+    return {v.name: (v, run_detector_sweep(v.task, list(plan.detectors), v.param, list(v.values),
+                                           Path(runs) / "viewpoints" / v.name, workers, progress, backend))
+            for v in plan.viewpoints}

@@ -20,7 +20,7 @@ from typing import Any
 
 from kgn_bench.config import CLUTTER_PROTOCOLS
 from kgn_bench.errors import KGNBenchError
-from kgn_bench.io import atomic_write_text
+from kgn_bench.io import atomic_write, atomic_write_text
 
 from .attempt import FAILURE_REASONS
 from .stats import Rate, per_object_meaning
@@ -167,8 +167,11 @@ def _detectors(summaries: list[dict[str, Any]]) -> list[str]:
     return [d for d in DETECTOR_ORDER if d in names] + sorted(names - set(DETECTOR_ORDER))
 
 
-def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tuple[str, dict[str, Any]]:
-    """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png}."""
+def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
+                 viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None = None) -> tuple[str, dict[str, Any]]:
+    """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png}. ``viewpoints``
+    (``benchmark.run_viewpoints``: name → (study, sweep points per detector)) adds the viewpoint study: its
+    tables, and its plots copied to out/viewpoints_<name>.png."""
     if not summaries:
         raise ReportError("no runs to report")
     cells: dict[tuple[str, str], dict[str, Any]] = {}
@@ -201,6 +204,8 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         lines += ["", PAPER_NOTE]
     if hard:
         lines += _hard_lines(hard, hard_columns, detectors, rate)
+    if viewpoints:
+        lines += _viewpoint_lines(viewpoints)
     lines += ["", "## Failure reasons (attempts, all tasks)", "",
               "| detector | attempts | " + " | ".join(FAILURE_REASONS) + " |",
               "|---|---:|" + "---:|" * len(FAILURE_REASONS)]
@@ -230,13 +235,53 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None) -> tu
         "runs": [s["run"] for s in summaries],
         "environment_warnings": environment_warnings(summaries),
     }
+    if viewpoints:
+        payload["viewpoints"] = {
+            name: {"task": study.task.name, "param": study.param, "values": list(study.values),
+                   "detectors": {det: [p.summary["rates"]["success"] for p in points]
+                                 for det, points in series.items()}}
+            for name, (study, series) in viewpoints.items()}
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
+        for name, (_, series) in (viewpoints or {}).items():
+            plot = next(iter(series.values()))[0].out.parent.parent / "sweep.png"  # <study>/<detector>/<value>
+            if plot.is_file():
+                data = plot.read_bytes()
+                atomic_write(out / f"viewpoints_{name}.png", lambda f, data=data: f.write(data))
         atomic_write_text(out / "benchmark.md", text)
         atomic_write_text(out / "benchmark.json", json.dumps(payload, indent=1) + "\n")
         _chart(detectors, every, rate, out / "benchmark.png")
     return text, payload
+
+
+def _viewpoint_lines(viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]]) -> list[str]:
+    """The viewpoint study: per camera sweep, success in % per value and detector, and its plot."""
+    lines = ["", "## Viewpoint study", "",
+             "Success rate in % with Wilson 95 % intervals (k/n) against one camera setting; the rest of the camera "
+             "as stated. Every cell is the same scenes from another camera."]
+    for name, (study, series) in viewpoints.items():
+        cam = study.task.camera
+        fixed = ", ".join(f"{label} {_camera_text(getattr(cam, k))}{unit}" for k, (label, unit) in CAMERA_LABELS.items()
+                          if k != study.param.partition(".")[2])
+        dets = list(series)
+        lines += ["", f"### {name}: {study.task.name}, {study.param} ({fixed})", "",
+                  f"| {study.param} | " + " | ".join(dets) + " |", "|---|" + "---|" * len(dets)]
+        for i, value in enumerate(study.values):
+            lines.append(f"| {value} | " + " | ".join(str(Rate.from_dict(series[d][i].summary["rates"]["success"]))
+                                                    .replace(" %", "") for d in dets) + " |")
+        lines += ["", f"![{name}](viewpoints_{name}.png)"]
+    return lines
+
+
+CAMERA_LABELS = {"distance": ("distance", " m"), "elevation_deg": ("elevation", "°"), "azimuth_deg": ("azimuth", "°")}
+
+
+def _camera_text(value: Any) -> str:
+    """A camera setting as the task holds it: a number, or a range ``[lo, hi]`` drawn per trial."""
+    if isinstance(value, (tuple, list)):
+        return f"U[{value[0]:g}, {value[1]:g}]" if len(value) == 2 else str(value)
+    return f"{value:g}"
 
 
 def _hard_lines(hard: list[dict[str, Any]], columns: list[Column], detectors: list[str], rate) -> list[str]:
