@@ -804,6 +804,9 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f"{e.filename}: {reason}" if e.filename else reason)
     except ValueError as e:
         return _fail(str(e).splitlines()[0])
+    finally:
+        if "kgn_bench.cluster" in sys.modules:  # leave Ray now: its exit hook would first wait 0.5 s for logs
+            sys.modules["kgn_bench.cluster"].shutdown()
 
 
 if __name__ == "__main__":

@@ -3,24 +3,26 @@
 Only ``pool.run_jobs`` calls it, and only for ``--backend ray``: nothing else imports this module, and this
 module imports ``ray`` only inside its functions, so the package works without the ``ray`` extra.
 
-Each job is one Ray task (``num_cpus`` / ``num_gpus`` from the ``Backend``). The task's environment sets the
-trial thread counts and ``MUJOCO_GL`` (``WORKER_ENV``, through the task's ``runtime_env``), and a worker
+Each job is one Ray task (``num_cpus`` / ``num_gpus`` from the ``Backend``). The job's environment sets the
+trial thread counts and ``MUJOCO_GL`` (``WORKER_ENV``, through the ``runtime_env`` of ``ray.init``; through
+each task's when the process was connected to Ray before, by its own ``ray.init``), and a worker
 process runs ``initializer(*initargs)`` once, lazily, before its first job (the per-process state the local
 pool builds in its ``spawn``ed workers: a module-level cache keyed by the initializer and its arguments).
 Results come back to the driver as they finish and go to ``on_result`` there, so the driver writes the same
 files as the local pool. A worker that dies mid-job (killed, out of memory) has its job rerun on another
 worker, up to ``MAX_RETRIES`` times; a job is a pure function of its arguments, so the rerun gives the same
 result. Before any job runs, ``connect`` joins the cluster (or starts a local Ray) and runs the initializer
-once on a worker, while the caller does its own checks: a cluster that cannot be reached, or whose workers
-lack the package, its assets or the detector's weights, is one ``ClusterError`` line before the caller writes
-anything.
+on the workers that will run the jobs, while the caller does its own checks: a cluster that cannot be
+reached, or whose workers lack the package, its assets or the detector's weights, is one ``ClusterError``
+line before the caller writes anything.
 """
 
 from __future__ import annotations
 
 import os
 import socket
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from kgn_bench.errors import KGNBenchError
@@ -93,6 +95,21 @@ _STATE: dict[str, Any] = {}  # in a Ray worker process: the initializer key it r
 _SESSION: dict[str, Any] = {}  # in the driver: the address this process is connected to
 
 
+@contextmanager
+def _environ(env: dict[str, str]) -> Iterator[None]:
+    """This process's environment with ``env`` added, restored on exit."""
+    before = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        yield
+    finally:
+        for k, v in before.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def _job(work: Callable[[Any], Any] | None, initializer: Callable[..., None] | None, initargs: tuple[Any, ...],
          job: Any) -> Any:
     """The body of every Ray task: set the worker up once per (initializer, initargs), then run the job
@@ -113,8 +130,12 @@ def _remote(ray, num_cpus: float, num_gpus: float):
     fn = _SESSION.get("remote")
     if fn is None:
         fn = _SESSION["remote"] = ray.remote(_job)
+    # worker_env reaches the workers through the job when this process joined (its runtime environment, or the
+    # local Ray's inherited one); a per-task environment would leave the workers Ray started already idle and
+    # start new ones for it (Ray gives a task only a worker of its own environment)
+    env = {} if _SESSION.get("job_env") == worker_env() else {"runtime_env": {"env_vars": worker_env()}}
     return fn.options(num_cpus=num_cpus, num_gpus=num_gpus, max_retries=MAX_RETRIES, retry_exceptions=False,
-                      runtime_env={"env_vars": worker_env()}, name="kgn_bench_job")
+                      name="kgn_bench_job", **env)
 
 
 def _unwrap(ray, e: BaseException) -> BaseException:
@@ -137,15 +158,20 @@ def _join(ray, address: str | None) -> None:
         # "local": a new Ray of this process, never one that `ray start` left running on this machine
         kwargs: dict[str, Any] = {"address": address} if address else {
             "address": "local", "num_cpus": available_cores(), "include_dashboard": False}
+        env = worker_env()
         try:
-            ray.init(log_to_driver=False, configure_logging=False, **kwargs)
+            if address:  # the nodes' workers were started by `ray start`: the job's runtime environment sets env
+                ray.init(log_to_driver=False, configure_logging=False, runtime_env={"env_vars": env}, **kwargs)
+            else:  # the new Ray's raylet inherits env, and so does every worker it starts, the prestarted ones too
+                with _environ(env):
+                    ray.init(log_to_driver=False, configure_logging=False, **kwargs)
         except Exception as e:  # ConnectionError, RuntimeError, ...: Ray's many ways of saying "not there"
             where = f"at {address}" if address else "(local)"
             hint = ("; a cluster with token authentication needs RAY_AUTH_MODE=token and its token (RAY_AUTH_TOKEN)"
                     if address and os.environ.get("RAY_AUTH_MODE") is None else "")
             raise ClusterError(f"the Ray cluster {where} cannot be used: {_first_line(e)}{hint}") from None
         _SESSION.clear()
-        _SESSION["address"] = address
+        _SESSION.update(address=address, job_env=env)
 
 
 def job_slots(address: str | None, num_cpus: float = 1.0, num_gpus: float = 0.0) -> int:
@@ -161,17 +187,22 @@ def job_slots(address: str | None, num_cpus: float = 1.0, num_gpus: float = 0.0)
 
 
 def connect(address: str | None, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
-            num_cpus: float = 1.0, num_gpus: float = 0.0) -> Callable[[], None]:
+            num_cpus: float = 1.0, num_gpus: float = 0.0, workers: int = 1) -> Callable[[], None]:
     """Join the Ray cluster at ``address`` (None: ``RAY_ADDRESS``, else start a local Ray with this machine's
-    cores) unless this process is already connected there, and start ``initializer(*initargs)`` on one worker.
-    Returns the wait for that set-up, which raises ``ClusterError`` in one line if the workers cannot run the
-    jobs (the caller does its own checks meanwhile); a cluster that cannot be reached raises here."""
+    cores) unless this process is already connected there, and start ``initializer(*initargs)`` on as many
+    workers as ``workers`` jobs will run at once (at most the cluster's CPUs / ``num_cpus``), so that they are
+    set up while the caller does its own checks, not at their first job. Returns the wait for the first of
+    those set-ups, which raises ``ClusterError`` in one line if the workers cannot run the jobs (the others
+    would fail their first job the same way); a cluster that cannot be reached raises here."""
     ray = _ray()
     _join(ray, address)
     key = (initializer, tuple(initargs), num_cpus, num_gpus)
     if _SESSION.get("probed") == key:
         return lambda: None
-    ref = _remote(ray, num_cpus, num_gpus).remote(None, initializer, tuple(initargs), None)
+    remote = _remote(ray, num_cpus, num_gpus)
+    slots = int(ray.cluster_resources().get("CPU", 0.0) // num_cpus)
+    refs = [remote.remote(None, initializer, tuple(initargs), None) for _ in range(max(1, min(workers, slots)))]
+    ref = refs[0]
 
     def wait() -> None:
         try:

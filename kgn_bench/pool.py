@@ -61,16 +61,17 @@ class Backend:
             return self
         return replace(self, num_cpus=num_cpus, num_gpus=self.num_gpus or num_gpus)
 
-    def prepare(self, initializer: Callable[..., None] | None = None,
-                initargs: Iterable[Any] = ()) -> Callable[[], None]:
+    def prepare(self, initializer: Callable[..., None] | None = None, initargs: Iterable[Any] = (),
+                workers: int = 1) -> Callable[[], None]:
         """Start checking that the jobs can run there; the returned call waits for the answer, so that the
         caller's own checks overlap it, and must be made before anything is written. For Ray: join the cluster
-        (an unreachable one raises here) and set one worker up with ``initializer(*initargs)``
-        (``cluster.ClusterError`` in one line from the wait if that fails). Locally: nothing to check."""
+        (an unreachable one raises here) and set up the ``workers`` that will run the jobs with
+        ``initializer(*initargs)`` (``cluster.ClusterError`` in one line from the wait if the first set-up fails).
+        Locally: nothing to check."""
         if self.kind == "ray":
             from kgn_bench.cluster import connect
 
-            return connect(self.address, initializer, initargs, self.num_cpus, self.num_gpus)
+            return connect(self.address, initializer, initargs, self.num_cpus, self.num_gpus, workers)
         return lambda: None
 
 

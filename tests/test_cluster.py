@@ -118,6 +118,19 @@ def test_a_local_ray_gives_the_local_pools_records(task, local_run, tmp_path):
     assert len((out / "trials.jsonl").read_text().splitlines()) == 2
 
 
+def test_a_local_rays_workers_inherit_the_worker_env_and_the_driver_keeps_its_own(monkeypatch):
+    cluster.shutdown()
+    monkeypatch.setenv("OMP_NUM_THREADS", "7")
+    got = []
+    job_env = lambda _: (os.environ.get("OMP_NUM_THREADS"), os.environ.get("MUJOCO_GL"),  # noqa: E731 (by value)
+                         dict(__import__("ray").get_runtime_context().runtime_env))
+    run_jobs([0, 1, 2], job_env, got.append, workers=2, backend=LOCAL_RAY)
+    # one thread per trial and the driver's GL on every worker, with no runtime environment of their own (so
+    # the workers Ray prestarted run the jobs), while this process keeps its own thread setting
+    assert got == [("1", os.environ.get("MUJOCO_GL", "egl"), {})] * 3
+    assert os.environ["OMP_NUM_THREADS"] == "7"
+
+
 def test_a_run_resumes_across_backends(task, local_run, tmp_path):
     half = tmp_path / "local_then_ray"
     shutil.copytree(local_run, half)

@@ -225,7 +225,7 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
     if record and backend.kind != "local":
         raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
     backend = backend.reserving(task.resources.num_cpus, task.resources.num_gpus)
-    cluster_ready = backend.prepare(_worker_init, (detector,))  # a Ray worker builds the detector meanwhile
+    cluster_ready = backend.prepare(_worker_init, (detector,), workers)  # Ray workers build the detector meanwhile
     instance = build_detector(detector)  # fails here, in one line, before anything is written
     ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
     check_cameras(task)  # and so does a camera that cannot see the workspace

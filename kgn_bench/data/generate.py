@@ -292,7 +292,7 @@ def generate_dataset(config: GenerateConfig, root: Path, workers: int = 1, overw
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
     root = Path(root)
-    backend.prepare(_worker_init)()  # a cluster that cannot run the scenes fails here, before anything is written
+    backend.prepare(_worker_init, (), workers)()  # a cluster that cannot run the scenes fails here, before any write
     todo = prepare_output(config, root, overwrite)
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
     bar = Progress(len(todo), f"data generate {config.mode}", unit="scenes", enabled=progress)
