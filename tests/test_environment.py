@@ -18,3 +18,13 @@ def test_environment_differences_names_what_moved():
     b = {**a, "packages": {**a["packages"], "opencv-python-headless": "4.14.0"}}
     (line,) = environment_differences(a, b)
     assert line.startswith("opencv-python-headless ") and line.endswith("→ 4.14.0")
+
+
+def test_the_cpu_is_recorded_and_compared_when_both_records_know_it():
+    a = environment()
+    assert a["cpu"] is None or (isinstance(a["cpu"], str) and a["cpu"])
+    other = {**a, "cpu": "Some Other CPU"}
+    if a["cpu"]:
+        assert environment_differences(a, other) == [f"cpu {a['cpu']} → Some Other CPU"]
+    older = {k: v for k, v in a.items() if k != "cpu"}  # a run.json from before the CPU was recorded
+    assert environment_differences(older, other) == []

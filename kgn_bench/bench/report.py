@@ -144,10 +144,13 @@ def _environment_line(summaries: list[dict[str, Any]]) -> str:
     envs = [s["environment"] for s in summaries if s.get("environment")]
     if not envs:
         return "Environment: not recorded."
-    if len({json.dumps(e, sort_keys=True) for e in envs}) > 1 or len(envs) < len(summaries):
+    from kgn_bench.environment import environment_differences
+
+    if any(environment_differences(envs[0], e) for e in envs[1:]) or len(envs) < len(summaries):
         return "Environment: MIXED (see the warnings of `kgn-bench report`)."
     e = envs[0]
-    return (f"Environment: Python {e['python']} on {e['machine']}, "
+    cpu = f" ({e['cpu']})" if e.get("cpu") else ""
+    return (f"Environment: Python {e['python']} on {e['machine']}{cpu}, "
             + ", ".join(f"{k} {v}" for k, v in e["packages"].items()) + ".")
 
 
