@@ -203,11 +203,13 @@ def connect(address: str | None, initializer: Callable[..., None] | None = None,
     slots = int(ray.cluster_resources().get("CPU", 0.0) // num_cpus)
     refs = [remote.remote(None, initializer, tuple(initargs), None) for _ in range(max(1, min(workers, slots)))]
     ref = refs[0]
+    _SESSION.setdefault("warming", []).extend(refs[1:])
 
     def wait() -> None:
         try:
             info = ray.get(ref)
         except Exception as e:
+            _drain(ray)  # the other set-ups fail the same way: collect them, or Ray prints each at exit
             cause = _unwrap(ray, e)
             raise ClusterError(f"the Ray workers cannot run kgn-bench ({_first_line(cause)}); install the same "
                                f"kgn-bench on every node ({INSTALL_HINT}) or ship it in a runtime_env") from None
@@ -219,12 +221,29 @@ def connect(address: str | None, initializer: Callable[..., None] | None = None,
     return wait
 
 
+def _drain(ray, timeout: float = 30.0) -> None:
+    """Collect the results of the extra worker set-ups ``connect`` started (their errors included: the jobs
+    report those themselves), cancelling any still running after ``timeout`` s."""
+    refs = _SESSION.pop("warming", [])
+    if not refs:
+        return
+    done, pending = ray.wait(refs, num_returns=len(refs), timeout=timeout)
+    for ref in pending:
+        ray.cancel(ref, force=True)
+    for ref in done + pending:
+        try:
+            ray.get(ref, timeout=timeout)
+        except Exception:  # a set-up's error is the jobs' to report
+            pass
+
+
 def shutdown() -> None:
     """Leave the cluster (a local Ray this process started stops with it)."""
     import sys
 
     ray = sys.modules.get("ray")
     if ray is not None and ray.is_initialized():
+        _drain(ray, timeout=0.0)
         ray.shutdown()
     _SESSION.clear()
 
@@ -262,3 +281,5 @@ def run_ray_jobs(jobs: Sequence[J], work: Callable[[J], R], on_result: Callable[
         for ref in pending:
             ray.cancel(ref, force=True)
         raise
+    finally:
+        _drain(ray)
