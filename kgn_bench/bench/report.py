@@ -68,6 +68,9 @@ GIGA_NOTE = (
     "grasp through IK on our primitives and household objects."
 )
 
+CAMERA_LABELS = {"distance": ("distance", " m"), "elevation_deg": ("elevation", "°"), "azimuth_deg": ("azimuth", "°")}
+"""How the viewpoint study names the camera settings it holds fixed: label and unit."""
+
 DETECTOR_ORDER = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth", "antipodal", "random", "oracle")
 
 PAPER: dict[str, dict[tuple[str, str], tuple[float, float, int]]] = {
@@ -275,9 +278,6 @@ def _viewpoint_lines(viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]]) ->
                                                     .replace(" %", "") for d in dets) + " |")
         lines += ["", f"![{name}](viewpoints_{name}.png)"]
     return lines
-
-
-CAMERA_LABELS = {"distance": ("distance", " m"), "elevation_deg": ("elevation", "°"), "azimuth_deg": ("azimuth", "°")}
 
 
 def _camera_text(value: Any) -> str:
