@@ -224,12 +224,16 @@ def _decompose(mesh: trimesh.Trimesh, config: ImportConfig, cache: Path) -> list
 
 
 def _rest_poses(mesh: trimesh.Trimesh, seed: int) -> list[dict]:
-    """The likely resting orientations (probability ≥ 2 %, at most 8, renormalised) as rotations."""
+    """The likely resting orientations (probability ≥ 2 %, at most 8, renormalised) as rotations.
+
+    Rotations and probabilities are rounded to 9 decimals: trimesh's stable-pose probabilities differ in their
+    last bits between CPUs (measured: 0.25726290473703906 on one, ...894 on another), and the manifest must be
+    the same wherever the object is imported."""
     transforms, probs = trimesh.poses.compute_stable_poses(mesh, n_samples=1, threshold=0.0, sigma=0.0)
     order = np.argsort(-np.asarray(probs))
     keep = [i for i in order if probs[i] >= 0.02][:8] or [int(order[0])]
     total = float(sum(probs[i] for i in keep))
-    return [{"R": np.asarray(transforms[i])[:3, :3].round(9).tolist(), "probability": float(probs[i]) / total}
+    return [{"R": np.asarray(transforms[i])[:3, :3].round(9).tolist(), "probability": round(float(probs[i]) / total, 9)}
             for i in keep]
 
 
