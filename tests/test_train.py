@@ -3,9 +3,11 @@
 import json
 
 import pytest
+import torch
 
+from kgn_bench.environment import cpu_model
 from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model
-from kgn_bench.model.train import TrainConfigError, load_train_config, train
+from kgn_bench.model.train import TrainConfigError, load_train_config, machine_label, train
 
 TINY = """
 [train]
@@ -48,6 +50,7 @@ def test_tiny_run_trains_checkpoints_and_resumes(tmp_path, tiny_dataset):
     ckpt = load_checkpoint(tmp_path / "run" / "last.pt")
     assert ckpt["epoch"] == 1 and "optimizer" in ckpt and ckpt["dataset"]["sha256"]
     assert ckpt["train"]["train"]["variant"] == "kgnv2" and ckpt["git_commit"]
+    assert ckpt["machine"] == machine_label(torch.device("cpu")) and (cpu_model() or "unknown CPU") in ckpt["machine"]
     shipped = load_checkpoint(final)
     assert "optimizer" not in shipped
     assert load_model(final).variant.name == "kgnv2"

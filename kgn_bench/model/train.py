@@ -35,6 +35,7 @@ from torch.utils.data import DataLoader
 from kgn_bench.config import parse_section, read_toml, resolve_task
 from kgn_bench.data.format import DatasetError
 from kgn_bench.data.training import AugmentConfig, GraspViewDataset
+from kgn_bench.environment import cpu_model
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.model.checkpoint import (
     CheckpointError,
@@ -53,7 +54,7 @@ from kgn_bench.model.variants import get_variant
 from kgn_bench.progress import Progress
 from kgn_bench.threads import available_cores
 
-__all__ = ["TrainConfig", "TrainConfigError", "load_train_config", "train"]
+__all__ = ["TrainConfig", "TrainConfigError", "load_train_config", "machine_label", "train"]
 
 
 class TrainConfigError(KGNBenchError, ValueError):
@@ -123,6 +124,15 @@ def load_train_config(path: Path) -> TrainConfig:
     if t.epochs < 1 or t.batch_size < 1 or not t.lr > 0 or t.workers < 0 or t.limit < 0 or t.eval_every < 0:
         raise TrainConfigError(f"{path}: epochs and batch_size must be ≥ 1, lr > 0, workers/limit/eval_every ≥ 0")
     return cfg
+
+
+def machine_label(device: torch.device) -> str:
+    """Where a run trains, for its model card: architecture, CPU model, torch's CPU threads and the device,
+    with the GPU's name on CUDA, e.g. ``x86_64, AMD EPYC, 2 threads, cpu``."""
+    parts = [platform.machine(), cpu_model() or "unknown CPU", f"{torch.get_num_threads()} threads"]
+    if device.type == "cuda":
+        parts.append(torch.cuda.get_device_name(device))
+    return ", ".join([*parts, device.type])
 
 
 def _collate(batch):
@@ -200,8 +210,7 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, th
             "epoch": epoch,
             "history": history,
             "parameters": count_parameters(net),
-            "machine": f"{platform.machine()} {platform.processor() or ''} {torch.get_num_threads()} threads "
-                       f"{dev.type}".strip(),
+            "machine": machine_label(dev),
         }
         if with_optimizer:
             p["optimizer"] = optim.state_dict()
