@@ -80,9 +80,10 @@ class KGNDetector:
             torch.set_num_threads(self.threads)
         t = time.perf_counter()
         net = self.model.net
+        device = next(net.parameters()).device  # the network may sit on a GPU (training's held-out check)
         with torch.inference_mode():
-            out = net(x[None])
-        maps = {k: v[0, :, :ho, :wo].float().numpy() for k, v in out.items()}
+            out = net(x[None].to(device))
+        maps = {k: v[0, :, :ho, :wo].float().cpu().numpy() for k, v in out.items()}
         maps["hm"] = 1.0 / (1.0 + np.exp(-maps["hm"]))
         self.timing["network"] = time.perf_counter() - t
         return maps, M
