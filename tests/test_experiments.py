@@ -121,3 +121,13 @@ def test_real_evaluation_of_a_small_model(tiny_dataset, small_model, tmp_path, m
     summary = evaluate_cached(MODELS["kgnv2_multi"], "multi", {"multi": root}, tmp_path / "cache", views=2)
     assert summary["images"] == 2 and len(summary["thresholds"]) == 3
     assert (tmp_path / "cache" / "kgnv2_multi_on_multi.md").read_text().startswith("# KGNv2 (multi)")
+
+
+@pytest.mark.parametrize(("weights", "recipe"), [("kgnv2", "recipe 3 (16 epochs, frontal targets, depth-anchored"),
+                                                 ("kgnv2_recipe2", "recipe 2 (12 epochs"),
+                                                 ("kgn", "recipe 3 (16 epochs, frontal targets)"),
+                                                 ("kgn_recipe1", "recipe 1 (12 epochs)")])
+def test_the_tables_name_the_recipe_of_the_shipped_weights(weights, recipe):
+    """The recipe is read from the checkpoint itself, so a table row says how its weights were trained."""
+    assert ex.recipe_of(ex.ModelSpec("m", "kgnv2", weights, "multi", "M")).startswith(recipe)
+    assert ex.recipe_of(ex.ModelSpec("m", "kgnv2", "no_such_weights", "multi", "M")) == "not trained"

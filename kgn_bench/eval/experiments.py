@@ -45,6 +45,7 @@ __all__ = [
 ]
 
 METRICS = ("gsr", "gcr", "osr")
+RECIPE2_EPOCHS = 12  # recipes 1 and 2 train 12 epochs; recipe 3 is recipe 2 over more
 THRESHOLD_LABELS = ("1 cm / 20°", "2 cm / 30°", "3 cm / 45°")
 
 
@@ -334,9 +335,10 @@ def build_table2(data_dirs: DataDirs | None, out: Path, views: int | None = None
 
 
 def recipe_of(model: ModelSpec) -> str:
-    """How ``model``'s shipped weights were trained, from their checkpoint: ``recipe 2`` (the frontal target
-    assignment, and the depth-anchored scale for a scale head) or ``recipe 1`` (the reference's targets and
-    scale), with the epochs; ``not trained`` when the weights are absent, ``unknown`` when unreadable."""
+    """How ``model``'s shipped weights were trained, from their checkpoint: ``recipe 1`` (the reference's
+    targets and scale, 12 epochs), ``recipe 2`` (the frontal target assignment, and the depth-anchored scale
+    for a scale head, 12 epochs) or ``recipe 3`` (recipe 2 over more epochs: 16, stepped after 12 and 14),
+    with the epochs; ``not trained`` when the weights are absent, ``unknown`` when unreadable."""
     from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint
 
     weights = WEIGHTS_DIR / f"{model.weights}.pt"
@@ -350,7 +352,8 @@ def recipe_of(model: ModelSpec) -> str:
     epochs = data.get("epoch", "?")
     if train.get("assignment", "first") == "frontal":
         anchor = ", depth-anchored scale" if data.get("scale_anchor", "none") == "depth" else ""
-        return f"recipe 2 ({epochs} epochs, frontal targets{anchor})"
+        recipe = 3 if isinstance(epochs, int) and epochs > RECIPE2_EPOCHS else 2
+        return f"recipe {recipe} ({epochs} epochs, frontal targets{anchor})"
     return f"recipe 1 ({epochs} epochs)"
 
 
