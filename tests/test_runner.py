@@ -428,3 +428,31 @@ def test_clutter_rounds_end_as_published_and_count_what_fell(tmp_path, protocol)
         assert ended and record["removed"] + record["fallen"] <= record["placed"]
     summary = result.summary
     assert {"success", "clear", "scenes_cleared"} <= set(summary["rates"]) and "fallen" in summary
+
+
+def test_removing_placed_objects_is_part_of_a_rounds_identity_only(task):
+    from kgn_bench.bench.runner import run_identity
+
+    multi = replace(load_task(TASKS / "multi_object.toml"), trials=1)
+    kept = replace(multi, execution=replace(multi.execution, remove_placed=False))
+    assert multi.execution.remove_placed
+    assert run_identity(multi, "oracle") != run_identity(kept, "oracle")  # a round's outcome may change
+    single = replace(task, execution=replace(task.execution, remove_placed=False))
+    assert run_identity(task, "oracle") == run_identity(single, "oracle")  # one attempt: nothing to remove
+    assert "remove_placed" not in run_identity(task, "oracle")["config"]["execution"]
+
+
+@pytest.mark.parametrize("remove", [True, False])
+def test_a_round_removes_each_object_it_puts_in_the_bin_when_asked(tmp_path, monkeypatch, remove):
+    from kgn_bench.sim.scene import Scene
+
+    retired = []
+    real = Scene.retire_object
+    monkeypatch.setattr(Scene, "retire_object", lambda self, i: (retired.append(i), real(self, i)))
+    base = load_task(TASKS / "pile.toml")
+    task = replace(base, objects_per_scene=3, trials=1, execution=replace(base.execution, remove_placed=remove))
+    run_benchmark(task, "oracle", tmp_path / "pile", progress=False)
+    (record,) = read_trials(tmp_path / "pile" / "trials.jsonl")
+    picked = [record["objects"].index(a["object"]) for a in record["attempts"] if a["success"]]
+    assert record["removed"] >= 1 and record["fallen"] == 0  # removed objects are not counted as fallen
+    assert retired == (picked if remove else [])

@@ -84,6 +84,8 @@ def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
     learned detector, the hash of its weights."""
     config = task.to_dict()
     del config["resources"]  # where the trials run does not change them (config.ResourceConfig)
+    if not task.clearance:  # one attempt a trial: nothing is left to remove (config.ExecutionConfig)
+        del config["execution"]["remove_placed"]
     identity = {"task": task.name, "protocol": task.protocol, "detector": detector, "seed": task.seed,
                 "trials": task.n_trials, "config": config}
     weights = _weights_identity(detector)
