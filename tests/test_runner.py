@@ -456,3 +456,27 @@ def test_a_round_removes_each_object_it_puts_in_the_bin_when_asked(tmp_path, mon
     picked = [record["objects"].index(a["object"]) for a in record["attempts"] if a["success"]]
     assert record["removed"] >= 1 and record["fallen"] == 0  # removed objects are not counted as fallen
     assert retired == (picked if remove else [])
+
+
+def test_runs_on_one_shared_pool_give_the_same_files_as_one_after_another(tmp_path):
+    from kgn_bench.bench.runner import run_many
+
+    single = replace(load_task(TASKS / "ci_oracle.toml"), objects=("cuboid", "sphere", "stick"))
+    multi = replace(load_task(TASKS / "multi_object.toml"), name="multi_small", objects_per_scene=2, trials=2)
+    specs = [(t, d) for t in (single, multi) for d in ("oracle", "antipodal")]
+    for task, det in specs:
+        run_benchmark(task, det, tmp_path / "seq" / task.name / det, workers=1, progress=False)
+    # a kill left the second run of the pool half done: the shared pool resumes it with the others
+    half = tmp_path / "pool" / single.name / "antipodal"
+    shutil.copytree(tmp_path / "seq" / single.name / "antipodal", half)
+    for name in ("summary.json", "summary.md", "timing.json"):
+        (half / name).unlink()
+    lines = (half / "trials.jsonl").read_text().splitlines(keepends=True)
+    (half / "trials.jsonl").write_text("".join(lines[:1]))
+    results = run_many([(t, d, tmp_path / "pool" / t.name / d) for t, d in specs], workers=2, progress=False)
+    assert [r.ran for r in results] == [3, 2, 2, 2]
+    for task, det in specs:
+        seq, pool = tmp_path / "seq" / task.name / det, tmp_path / "pool" / task.name / det
+        assert (pool / "summary.json").read_bytes() == (seq / "summary.json").read_bytes()
+        assert _records(pool) == _records(seq)
+        assert json.loads((pool / "timing.json").read_text())["workers"] == 2
