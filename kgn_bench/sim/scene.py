@@ -198,7 +198,7 @@ class Scene:
         self._proxy_bvh = int(m.body_bvhadr[proxy_body])
         self.table_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "table")
         self.collision_geoms = np.flatnonzero(m.geom_contype == 1)
-        self.retired: dict[int, np.ndarray] = {}  # object index -> where it rests (retire_object)
+        self.retired: dict[int, np.ndarray] = {}  # object index -> its qpos at rest (retire_object)
         for i, obj in enumerate(objects):
             self.set_object_pose(i, obj.pose)
         self.forward()
@@ -223,8 +223,9 @@ class Scene:
         m.geom_contype[mine] = 0
         m.geom_conaffinity[mine] = 0
         self.collision_geoms = self.collision_geoms[self.geom_label[self.collision_geoms] != i + 1]
-        self.retired[i] = make_pose(np.eye(3), _RETIRED_AT + np.array([float(i), 0.0, 0.0]))
-        self.set_object_pose(i, self.retired[i])
+        self.set_object_pose(i, make_pose(np.eye(3), _RETIRED_AT + np.array([float(i), 0.0, 0.0])))
+        a = self.qpos_adr[i]
+        self.retired[i] = self.data.qpos[a : a + 7].copy()
         self.forward()
 
     def object_pose(self, i: int) -> np.ndarray:
@@ -270,8 +271,10 @@ class Scene:
             mujoco.mj_step(self.model, self.data, nstep=n)
         except mujoco.FatalError as e:
             raise PhysicsError(_fatal_message(e, self.data.time)) from None
-        for i, pose in self.retired.items():
-            self.set_object_pose(i, pose)
+        for i, qpos in self.retired.items():  # back to rest (raw state: a pose conversion per call costs)
+            a, v = self.qpos_adr[i], self.qvel_adr[i]
+            self.data.qpos[a : a + 7] = qpos
+            self.data.qvel[v : v + 6] = 0.0
         if np.any(self.data.warning.number[_FULL_WARNINGS] > full):
             raise PhysicsError(f"MuJoCo's arena ({self.model.narena / 2**20:.0f} MB) is full at t = "
                                f"{self.data.time:.3f} s: contacts were dropped")
