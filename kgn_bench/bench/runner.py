@@ -342,10 +342,6 @@ def _run_any(args: tuple[str, TaskConfig, int]) -> tuple[int, dict[str, Any]]:
     return k, _run_one((task, index, None))
 
 
-def _pin_only() -> None:
-    pin_worker_threads()
-
-
 def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progress: bool = True,
              backend: Backend = LOCAL) -> list[RunResult]:
     """Run (or finish) several runs, each (task, detector, folder), as ``run_benchmark`` would one after another,
@@ -392,7 +388,7 @@ def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progres
             if writers[k].complete:
                 finish(k)
 
-        run_jobs(jobs, _run_any, arrived, workers=workers, initializer=_pin_only, local=trial_threads,
+        run_jobs(jobs, _run_any, arrived, workers=workers, initializer=pin_worker_threads, local=trial_threads,
                  what=f"{len(writers)} runs ({sum(w.complete for w in writers)} complete)", backend=backend)
     return [r for r in results if r is not None]
 
