@@ -229,26 +229,6 @@ def _running_rates(records: list[dict[str, Any]]) -> str:
     return text
 
 
-def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, record: bool = False,
-                  progress: bool = True, backend: Backend = LOCAL) -> RunResult:
-    """Run (or finish) ``task`` with ``detector`` into ``out``; writes the summaries; returns them."""
-    if workers < 1:
-        raise ValueError("workers must be ≥ 1")
-    if record and backend.kind != "local":
-        raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
-    backend = backend.reserving(task.resources.num_cpus, task.resources.num_gpus)
-    cluster_ready = backend.prepare(_worker_init, (detector,), workers)  # Ray workers build the detector meanwhile
-    instance = build_detector(detector)  # fails here, in one line, before anything is written
-    ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
-    check_cameras(task)  # and so does a camera that cannot see the workspace
-    cluster_ready()  # and so does a cluster that cannot run the trials
-    out = Path(out)
-    identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
-    with run_lock(out):
-        _prepare(out, identity)
-        return _run_locked(task, detector, instance, out, identity, workers, record, progress, backend)
-
-
 class _RunWriter:
     """The driver's side of one run folder while its trials come in: appends each record to ``trials.jsonl``
     (fsync'd, so a kill loses at most the line being written), shows the progress, and writes the summaries
@@ -325,17 +305,49 @@ class _RunWriter:
         return RunResult(summary, timing, len(self.todo))
 
 
-def _run_locked(task: TaskConfig, detector: str, instance: Any, out: Path, identity: dict[str, Any], workers: int,
-                record: bool, progress: bool, backend: Backend) -> RunResult:
-    writer = _RunWriter(task, detector, out, identity, record, progress)
-    start = time.perf_counter()
-    _worker_setup(detector, instance)  # the in-process path uses the detector built above
-    run_jobs(writer.jobs(), _run_one, writer.add, workers=workers, initializer=_worker_init, initargs=(detector,),
-             local=trial_threads, what=writer.what, backend=backend)
-    return writer.finish(time.perf_counter() - start, workers)
+def _check_runs(runs: list[tuple[TaskConfig, str]], workers: int, progress: bool) -> dict[str, Any]:
+    """Every check made before anything is written, for runs of (task, detector): each detector builds (an
+    unknown name, a constructor that raises or weights that do not load stop here, in one line), each task's
+    packaged objects are imported, each camera sees the workspace. Returns the built detectors by name."""
+    built = {detector: build_detector(detector) for detector in dict.fromkeys(d for _, d in runs)}
+    for task in {t.name: t for t, _ in runs}.values():
+        ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
+        check_cameras(task)
+    return built
 
 
-def _run_any(args: tuple[str, TaskConfig, int]) -> tuple[int, dict[str, Any]]:
+def _open_run(stack: ExitStack, task: TaskConfig, detector: str, out: Path, record: bool,
+              progress: bool) -> _RunWriter:
+    """Lock the run folder ``out`` for the life of ``stack``, check or write its ``run.json``, and return the
+    writer of its remaining trials."""
+    out = Path(out)
+    identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
+    stack.enter_context(run_lock(out))
+    _prepare(out, identity)
+    return _RunWriter(task, detector, out, identity, record, progress)
+
+
+def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, record: bool = False,
+                  progress: bool = True, backend: Backend = LOCAL) -> RunResult:
+    """Run (or finish) ``task`` with ``detector`` into ``out``; writes the summaries; returns them."""
+    if workers < 1:
+        raise ValueError("workers must be ≥ 1")
+    if record and backend.kind != "local":
+        raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
+    backend = backend.reserving(task.resources.num_cpus, task.resources.num_gpus)
+    cluster_ready = backend.prepare(_worker_init, (detector,), workers)  # Ray workers build the detector meanwhile
+    instance = _check_runs([(task, detector)], workers, progress)[detector]
+    cluster_ready()  # a cluster that cannot run the trials stops here too
+    with ExitStack() as stack:
+        writer = _open_run(stack, task, detector, out, record, progress)
+        start = time.perf_counter()
+        _worker_setup(detector, instance)  # the in-process path uses the detector built above
+        run_jobs(writer.jobs(), _run_one, writer.add, workers=workers, initializer=_worker_init,
+                 initargs=(detector,), local=trial_threads, what=writer.what, backend=backend)
+        return writer.finish(time.perf_counter() - start, workers)
+
+
+def _run_any(args: tuple[int, str, TaskConfig, int]) -> tuple[int, dict[str, Any]]:
     """A trial of any run of ``run_many``: (run number, detector, task, index) -> (run number, record)."""
     k, detector, task, index = args
     _worker_setup(detector)
@@ -356,19 +368,9 @@ def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progres
         raise ValueError("workers must be ≥ 1")
     if workers == 1 or backend.kind != "local" or len(runs) <= 1:
         return [run_benchmark(t, d, o, workers=workers, progress=progress, backend=backend) for t, d, o in runs]
-    for detector in dict.fromkeys(d for _, d, _ in runs):
-        build_detector(detector)  # fails here, in one line, before anything is written
-    for task in {t.name: t for t, _, _ in runs}.values():
-        ensure_objects(task.objects, workers=workers, progress=progress)
-        check_cameras(task)
+    _check_runs([(t, d) for t, d, _ in runs], workers, progress)
     with ExitStack() as stack:
-        writers = []
-        for task, detector, out in runs:
-            out = Path(out)
-            identity = json.loads(json.dumps(run_identity(task, detector)))
-            stack.enter_context(run_lock(out))
-            _prepare(out, identity)
-            writers.append(_RunWriter(task, detector, out, identity, False, progress))
+        writers = [_open_run(stack, task, detector, out, False, progress) for task, detector, out in runs]
         results: list[RunResult | None] = [None] * len(writers)
         jobs = [(k, w.detector, task, i) for k, w in enumerate(writers) for task, i, _ in w.jobs()]
         clock = {"last": time.perf_counter()}
