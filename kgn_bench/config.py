@@ -136,7 +136,11 @@ class SelectorConfig:
 @dataclass(frozen=True)
 class ExecutionConfig:
     """Motion parameters (m, s). ``grasp_depth``: how much further than the grasp origin the TCP goes
-    along the approach (clipped so the fingertips stay ``table_clearance`` above the table)."""
+    along the approach (clipped so the fingertips stay ``table_clearance`` above the table).
+    ``remove_placed``: in a round of several objects, an object put in the bin leaves the scene once its
+    success is counted (``Scene.retire_object``), as VGN and GIGA remove a grasped object; it then makes no
+    contacts, which were most of a round's physics. Off, it stays in the bin for the rest of the round (the
+    protocol before 2026-12-05). No effect on ``single_object``."""
 
     pregrasp_distance: float = 0.10
     grasp_depth: float = 0.01
@@ -146,6 +150,7 @@ class ExecutionConfig:
     max_consecutive_failures: int = 3
     max_attempts_per_object: int = 3
     settle_time: float = 0.3
+    remove_placed: bool = True
 
 
 @dataclass(frozen=True)

@@ -428,3 +428,55 @@ def test_clutter_rounds_end_as_published_and_count_what_fell(tmp_path, protocol)
         assert ended and record["removed"] + record["fallen"] <= record["placed"]
     summary = result.summary
     assert {"success", "clear", "scenes_cleared"} <= set(summary["rates"]) and "fallen" in summary
+
+
+def test_removing_placed_objects_is_part_of_a_rounds_identity_only(task):
+    from kgn_bench.bench.runner import run_identity
+
+    multi = replace(load_task(TASKS / "multi_object.toml"), trials=1)
+    kept = replace(multi, execution=replace(multi.execution, remove_placed=False))
+    assert multi.execution.remove_placed
+    assert run_identity(multi, "oracle") != run_identity(kept, "oracle")  # a round's outcome may change
+    single = replace(task, execution=replace(task.execution, remove_placed=False))
+    assert run_identity(task, "oracle") == run_identity(single, "oracle")  # one attempt: nothing to remove
+    assert "remove_placed" not in run_identity(task, "oracle")["config"]["execution"]
+
+
+@pytest.mark.parametrize("remove", [True, False])
+def test_a_round_removes_each_object_it_puts_in_the_bin_when_asked(tmp_path, monkeypatch, remove):
+    from kgn_bench.sim.scene import Scene
+
+    retired = []
+    real = Scene.retire_object
+    monkeypatch.setattr(Scene, "retire_object", lambda self, i: (retired.append(i), real(self, i)))
+    base = load_task(TASKS / "pile.toml")
+    task = replace(base, objects_per_scene=3, trials=1, execution=replace(base.execution, remove_placed=remove))
+    run_benchmark(task, "oracle", tmp_path / "pile", progress=False)
+    (record,) = read_trials(tmp_path / "pile" / "trials.jsonl")
+    picked = [record["objects"].index(a["object"]) for a in record["attempts"] if a["success"]]
+    assert record["removed"] >= 1 and record["fallen"] == 0  # removed objects are not counted as fallen
+    assert retired == (picked if remove else [])
+
+
+def test_runs_on_one_shared_pool_give_the_same_files_as_one_after_another(tmp_path):
+    from kgn_bench.bench.runner import run_many
+
+    single = replace(load_task(TASKS / "ci_oracle.toml"), objects=("cuboid", "sphere", "stick"))
+    multi = replace(load_task(TASKS / "multi_object.toml"), name="multi_small", objects_per_scene=2, trials=2)
+    specs = [(t, d) for t in (single, multi) for d in ("oracle", "antipodal")]
+    for task, det in specs:
+        run_benchmark(task, det, tmp_path / "seq" / task.name / det, workers=1, progress=False)
+    # a kill left the second run of the pool half done: the shared pool resumes it with the others
+    half = tmp_path / "pool" / single.name / "antipodal"
+    shutil.copytree(tmp_path / "seq" / single.name / "antipodal", half)
+    for name in ("summary.json", "summary.md", "timing.json"):
+        (half / name).unlink()
+    lines = (half / "trials.jsonl").read_text().splitlines(keepends=True)
+    (half / "trials.jsonl").write_text("".join(lines[:1]))
+    results = run_many([(t, d, tmp_path / "pool" / t.name / d) for t, d in specs], workers=2, progress=False)
+    assert [r.ran for r in results] == [3, 2, 2, 2]
+    for task, det in specs:
+        seq, pool = tmp_path / "seq" / task.name / det, tmp_path / "pool" / task.name / det
+        assert (pool / "summary.json").read_bytes() == (seq / "summary.json").read_bytes()
+        assert _records(pool) == _records(seq)
+        assert json.loads((pool / "timing.json").read_text())["workers"] == 2

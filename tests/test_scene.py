@@ -60,3 +60,28 @@ def test_a_mujoco_fatal_error_becomes_a_physics_error(monkeypatch, rng):
     monkeypatch.setattr(scene_module, "arena_megabytes", lambda objects: 0.02)  # 20 KB: the stack overflows
     with pytest.raises(PhysicsError, match=r"^MuJoCo stopped at t = 0\.000 s: mj_stackAlloc: out of memory"):
         Scene(_six_objects(rng))
+
+
+def test_a_retired_object_makes_no_contacts_stays_put_and_leaves_the_others_alone():
+    from kgn_bench.shapes.primitives import Ring
+
+    ring = SceneObject(Ring(0.03, 0.01), (1, 0, 0), make_pose(t=[0, 0, 0.005]))
+    box = SceneObject(Cuboid((0.05, 0.05, 0.05)), (0, 1, 0), make_pose(t=[0.2, 0, 0.025]))
+
+    def contacts_of(scene, i):
+        labels = scene.geom_label[scene.data.contact.geom[: scene.data.ncon]]
+        return int(np.sum(np.any(labels == i + 1, axis=1)))
+
+    scene = Scene([ring, box], extend=lambda root: root.worldbody.add(
+        "geom", name="ground", type="plane", size=(1, 1, 0.1), contype=1, conaffinity=3))
+    scene.step(50)
+    assert contacts_of(scene, 0) >= 8  # 24 boxes lying on the ground
+    box_before = scene.object_pose(1)
+    scene.retire_object(0)
+    parked = scene.object_pose(0)
+    scene.step(200)
+    assert contacts_of(scene, 0) == 0 and contacts_of(scene, 1) > 0
+    np.testing.assert_allclose(scene.object_pose(0), parked, atol=1e-9)  # held at rest
+    assert parked[2, 3] < -10.0  # below the table, beyond the camera's far plane (10 m)
+    np.testing.assert_allclose(scene.object_pose(1)[:3, 3], box_before[:3, 3], atol=1e-3)
+    assert 0 not in scene.geom_label[scene.collision_geoms] - 1  # the gripper proxy no longer sees it

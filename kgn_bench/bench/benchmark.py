@@ -33,7 +33,7 @@ from pathlib import Path
 from kgn_bench.config import SELECTOR_MODES, ConfigError, TaskConfig, apply_override, load_task, read_toml, resolve_task
 from kgn_bench.pool import LOCAL, Backend
 
-from .runner import run_benchmark
+from .runner import run_many
 from .sweep import SweepPoint, run_detector_sweep
 
 __all__ = ["BenchmarkPlan", "Viewpoints", "load_plan", "run_plan", "run_viewpoints"]
@@ -143,14 +143,11 @@ def _plan_task(plan: Path, entry: str) -> TaskConfig:
 def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True,
              backend: Backend = LOCAL) -> list[Path]:
     """Run every (task, detector) of ``plan`` into ``runs``/task/detector (on ``backend``); returns the run
-    folders."""
-    folders = []
-    for task in plan.tasks:
-        for det in plan.detectors:
-            folder = Path(runs) / task.name / det
-            run_benchmark(task, det, folder, workers=workers, progress=progress, backend=backend)
-            folders.append(folder)
-    return folders
+    folders. Locally the runs share one pool (``runner.run_many``): the same records, no idle cores between
+    runs."""
+    specs = [(task, det, Path(runs) / task.name / det) for task in plan.tasks for det in plan.detectors]
+    run_many(specs, workers=workers, progress=progress, backend=backend)
+    return [folder for _, _, folder in specs]
 
 
 def run_viewpoints(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True,

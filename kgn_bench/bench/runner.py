@@ -13,6 +13,9 @@ Before anything is written, the detector is built once in the calling process, s
 constructor that raises or weights that do not load stop the run with one line. While a run writes to a
 folder it holds an exclusive lock on ``.lock`` there; a second run into the same folder is refused.
 
+``run_many`` runs several runs (a benchmark plan, a sweep) on one local pool: the same files, without the
+idle cores at each run's end and the workers' start per run.
+
 With ``backend`` ray (``pool.Backend``) the trials run as Ray tasks, on a cluster or a local Ray; the cluster is
 joined and one of its workers builds the detector before anything is written, and the records come back to
 this process, which writes the same files: a run may start on one backend and resume on the other.
@@ -26,7 +29,7 @@ import os
 import subprocess
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,7 +46,7 @@ from kgn_bench.threads import pin_worker_threads, trial_threads
 from .stats import Rate, summarise, summary_markdown
 from .trial import TIMING_KEYS, check_cameras, run_trial
 
-__all__ = ["RunError", "RunResult", "read_trials", "run_benchmark"]
+__all__ = ["RunError", "RunResult", "read_trials", "run_benchmark", "run_many"]
 
 
 class RunError(KGNBenchError, RuntimeError):
@@ -84,6 +87,8 @@ def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
     learned detector, the hash of its weights."""
     config = task.to_dict()
     del config["resources"]  # where the trials run does not change them (config.ResourceConfig)
+    if not task.clearance:  # one attempt a trial: nothing is left to remove (config.ExecutionConfig)
+        del config["execution"]["remove_placed"]
     identity = {"task": task.name, "protocol": task.protocol, "detector": detector, "seed": task.seed,
                 "trials": task.n_trials, "config": config}
     weights = _weights_identity(detector)
@@ -189,11 +194,18 @@ def _worker_init(detector: str) -> None:
 
 
 def _worker_setup(detector: str, instance: Any = None) -> None:
+    """Make ``detector`` (built here once, or ``instance``) the one this process's trials use; a process
+    keeps every detector it built, and one IK."""
     from kgn_bench.sim.control import IK
 
-    if _WORKER.get("name") != detector or instance is not None:
-        _WORKER.update(name=detector, detector=instance if instance is not None else build_detector(detector),
-                       ik=IK())
+    built = _WORKER.setdefault("built", {})
+    if instance is not None:
+        built[detector] = instance
+    elif detector not in built:
+        built[detector] = build_detector(detector)
+    if "ik" not in _WORKER:
+        _WORKER["ik"] = IK()
+    _WORKER.update(name=detector, detector=built[detector])
 
 
 def _run_one(args: tuple[TaskConfig, int, str | None]) -> dict[str, Any]:
@@ -217,6 +229,104 @@ def _running_rates(records: list[dict[str, Any]]) -> str:
     return text
 
 
+class _RunWriter:
+    """The driver's side of one run folder while its trials come in: appends each record to ``trials.jsonl``
+    (fsync'd, so a kill loses at most the line being written), shows the progress, and writes the summaries
+    once the run is complete."""
+
+    def __init__(self, task: TaskConfig, detector: str, out: Path, identity: dict[str, Any], record: bool,
+                 progress: bool) -> None:
+        self.task, self.detector, self.out, self.identity, self.record = task, detector, out, identity, record
+        self.trials_path = out / "trials.jsonl"
+        self.records = read_trials(self.trials_path)
+        done = {r["index"] for r in self.records}
+        self.todo = [i for i in range(task.n_trials) if i not in done]
+        self.rec_dir = out / "recordings"
+        if record:
+            self.rec_dir.mkdir(exist_ok=True)
+            for stale in self.rec_dir.glob("*.tmp"):
+                stale.unlink()
+        self.progress = progress
+        self.bar: Progress | None = None
+
+    def jobs(self) -> list[tuple[TaskConfig, int, str | None]]:
+        return [(self.task, i, str(self.rec_dir / f"trial_{i:05d}.rrd.tmp") if self.record else None)
+                for i in self.todo]
+
+    @property
+    def what(self) -> str:
+        return f"{self.task.name} with {self.detector} ({len(self.records)} of {self.task.n_trials} trials done)"
+
+    def add(self, rec: dict[str, Any]) -> None:
+        """One finished trial: its line in ``trials.jsonl`` (and its recording moved into place)."""
+        if self.record:
+            tmp = self.rec_dir / f"trial_{rec['index']:05d}.rrd.tmp"
+            if tmp.is_file():
+                os.replace(tmp, self.rec_dir / f"trial_{rec['index']:05d}.rrd")
+        line = json.dumps(rec, sort_keys=True) + "\n"
+        try:
+            with open(self.trials_path, "a") as f:
+                f.write(line)
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as e:  # a cut-short line is dropped on the next resume
+            raise OutputError(describe_os_error(e, self.trials_path)) from None
+        self.records.append(rec)
+        if self.bar is None:
+            self.bar = Progress(len(self.todo), f"run {self.task.name} {self.detector}", unit="trials",
+                                enabled=self.progress)
+        self.bar.update(1, _running_rates(self.records))
+
+    @property
+    def complete(self) -> bool:
+        return len(self.records) >= self.task.n_trials
+
+    def finish(self, wall: float, workers: int) -> RunResult:
+        """Write ``summary.json``, ``summary.md`` and (if trials ran) ``timing.json``; merge the recordings."""
+        if self.bar is not None:
+            self.bar.close()
+        out, identity = self.out, self.identity
+        run_meta = {k: identity[k] for k in ("task", "protocol", "detector", "seed")}
+        summary = summarise(self.records, run_meta)
+        atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+        atomic_write_text(out / "summary.md", summary_markdown(summary))
+        timing_file = out / "timing.json"
+        if self.todo or not timing_file.is_file():  # a resume with nothing left to run keeps the run's figures
+            timing = timing_summary(self.records, wall, len(self.todo), workers)
+            atomic_write_text(timing_file, json.dumps(timing, indent=2) + "\n")
+        else:
+            timing = json.loads(timing_file.read_text())
+        if self.record:
+            parts = sorted(self.rec_dir.glob("trial_*.rrd"))
+            if parts:
+                from kgn_bench.viz.recording import merge_recordings
+
+                merge_recordings(parts, out / "recording.rrd")
+        return RunResult(summary, timing, len(self.todo))
+
+
+def _check_runs(runs: list[tuple[TaskConfig, str]], workers: int, progress: bool) -> dict[str, Any]:
+    """Every check made before anything is written, for runs of (task, detector): each detector builds (an
+    unknown name, a constructor that raises or weights that do not load stop here, in one line), each task's
+    packaged objects are imported, each camera sees the workspace. Returns the built detectors by name."""
+    built = {detector: build_detector(detector) for detector in dict.fromkeys(d for _, d in runs)}
+    for task in {t.name: t for t, _ in runs}.values():
+        ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
+        check_cameras(task)
+    return built
+
+
+def _open_run(stack: ExitStack, task: TaskConfig, detector: str, out: Path, record: bool,
+              progress: bool) -> _RunWriter:
+    """Lock the run folder ``out`` for the life of ``stack``, check or write its ``run.json``, and return the
+    writer of its remaining trials."""
+    out = Path(out)
+    identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
+    stack.enter_context(run_lock(out))
+    _prepare(out, identity)
+    return _RunWriter(task, detector, out, identity, record, progress)
+
+
 def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, record: bool = False,
                   progress: bool = True, backend: Backend = LOCAL) -> RunResult:
     """Run (or finish) ``task`` with ``detector`` into ``out``; writes the summaries; returns them."""
@@ -226,70 +336,63 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
         raise RunError("--record writes recordings on the workers' disks: use it with --backend local")
     backend = backend.reserving(task.resources.num_cpus, task.resources.num_gpus)
     cluster_ready = backend.prepare(_worker_init, (detector,), workers)  # Ray workers build the detector meanwhile
-    instance = build_detector(detector)  # fails here, in one line, before anything is written
-    ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
-    check_cameras(task)  # and so does a camera that cannot see the workspace
-    cluster_ready()  # and so does a cluster that cannot run the trials
-    out = Path(out)
-    identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
-    with run_lock(out):
-        _prepare(out, identity)
-        return _run_locked(task, detector, instance, out, identity, workers, record, progress, backend)
+    instance = _check_runs([(task, detector)], workers, progress)[detector]
+    cluster_ready()  # a cluster that cannot run the trials stops here too
+    with ExitStack() as stack:
+        writer = _open_run(stack, task, detector, out, record, progress)
+        start = time.perf_counter()
+        _worker_setup(detector, instance)  # the in-process path uses the detector built above
+        run_jobs(writer.jobs(), _run_one, writer.add, workers=workers, initializer=_worker_init,
+                 initargs=(detector,), local=trial_threads, what=writer.what, backend=backend)
+        return writer.finish(time.perf_counter() - start, workers)
 
 
-def _run_locked(task: TaskConfig, detector: str, instance: Any, out: Path, identity: dict[str, Any], workers: int,
-                record: bool, progress: bool, backend: Backend) -> RunResult:
-    trials_path = out / "trials.jsonl"
-    records = read_trials(trials_path)
-    done = {r["index"] for r in records}
-    todo = [i for i in range(task.n_trials) if i not in done]
-    rec_dir = out / "recordings"
-    if record:
-        rec_dir.mkdir(exist_ok=True)
-        for stale in rec_dir.glob("*.tmp"):
-            stale.unlink()
-    jobs = [(task, i, str(rec_dir / f"trial_{i:05d}.rrd.tmp") if record else None) for i in todo]
-    bar = Progress(len(todo), f"run {task.name} {detector}", unit="trials", enabled=progress)
-    start = time.perf_counter()
+def _run_any(args: tuple[int, str, TaskConfig, int]) -> tuple[int, dict[str, Any]]:
+    """A trial of any run of ``run_many``: (run number, detector, task, index) -> (run number, record)."""
+    k, detector, task, index = args
+    _worker_setup(detector)
+    return k, _run_one((task, index, None))
 
-    def finished(rec: dict[str, Any]) -> None:
-        if record:
-            tmp = rec_dir / f"trial_{rec['index']:05d}.rrd.tmp"
-            if tmp.is_file():
-                os.replace(tmp, rec_dir / f"trial_{rec['index']:05d}.rrd")
-        line = json.dumps(rec, sort_keys=True) + "\n"
-        try:
-            with open(trials_path, "a") as f:
-                f.write(line)
-                f.flush()
-                os.fsync(f.fileno())
-        except OSError as e:  # a cut-short line is dropped on the next resume
-            raise OutputError(describe_os_error(e, trials_path)) from None
-        records.append(rec)
-        bar.update(1, _running_rates(records))
 
-    _worker_setup(detector, instance)  # the in-process path uses the detector built above
-    run_jobs(jobs, _run_one, finished, workers=workers, initializer=_worker_init, initargs=(detector,),
-             local=trial_threads, what=f"{task.name} with {detector} ({len(records)} of {task.n_trials} trials done)",
-             backend=backend)
-    wall = time.perf_counter() - start
-    run_meta = {k: identity[k] for k in ("task", "protocol", "detector", "seed")}
-    summary = summarise(records, run_meta)
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-    atomic_write_text(out / "summary.md", summary_markdown(summary))
-    timing_file = out / "timing.json"
-    if todo or not timing_file.is_file():  # a resume with nothing left to run keeps the figures of the run
-        timing = timing_summary(records, wall, len(todo), workers)
-        atomic_write_text(timing_file, json.dumps(timing, indent=2) + "\n")
-    else:
-        timing = json.loads(timing_file.read_text())
-    if record:
-        parts = sorted(rec_dir.glob("trial_*.rrd"))
-        if parts:
-            from kgn_bench.viz.recording import merge_recordings
+def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progress: bool = True,
+             backend: Backend = LOCAL) -> list[RunResult]:
+    """Run (or finish) several runs, each (task, detector, folder), as ``run_benchmark`` would one after another,
+    with the same files and the same records, but on one local pool of ``workers`` processes fed with the
+    trials of every run in order: a run's last trials overlap the next run's first, instead of leaving cores
+    idle, and the workers start once (each builds a detector the first time one of its trials comes). Every
+    check of ``run_benchmark`` is made for every run before anything is written, and every folder is locked
+    for the whole call. A run's ``timing.json`` ``wall_s`` is then the time it added to the call: from the
+    previous run's completion (or the start) to its own. With one worker, on Ray or for a single run, the runs
+    go one after another through ``run_benchmark``."""
+    if workers < 1:
+        raise ValueError("workers must be ≥ 1")
+    if workers == 1 or backend.kind != "local" or len(runs) <= 1:
+        return [run_benchmark(t, d, o, workers=workers, progress=progress, backend=backend) for t, d, o in runs]
+    _check_runs([(t, d) for t, d, _ in runs], workers, progress)
+    with ExitStack() as stack:
+        writers = [_open_run(stack, task, detector, out, False, progress) for task, detector, out in runs]
+        results: list[RunResult | None] = [None] * len(writers)
+        jobs = [(k, w.detector, task, i) for k, w in enumerate(writers) for task, i, _ in w.jobs()]
+        clock = {"last": time.perf_counter()}
 
-            merge_recordings(parts, out / "recording.rrd")
-    return RunResult(summary, timing, len(todo))
+        def finish(k: int) -> None:
+            now = time.perf_counter()
+            results[k] = writers[k].finish(now - clock["last"] if writers[k].todo else 0.0, workers)
+            clock["last"] = now
+
+        for k, w in enumerate(writers):  # nothing left to run: summaries rewritten now, timing kept
+            if not w.todo:
+                finish(k)
+
+        def arrived(result: tuple[int, dict[str, Any]]) -> None:
+            k, rec = result
+            writers[k].add(rec)
+            if writers[k].complete:
+                finish(k)
+
+        run_jobs(jobs, _run_any, arrived, workers=workers, initializer=pin_worker_threads, local=trial_threads,
+                 what=f"{len(writers)} runs ({sum(w.complete for w in writers)} complete)", backend=backend)
+    return [r for r in results if r is not None]
 
 
 def timing_summary(records: list[dict[str, Any]], wall: float, ran: int, workers: int) -> dict[str, Any]:

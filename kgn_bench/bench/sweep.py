@@ -21,7 +21,7 @@ from kgn_bench.io import atomic_write_text
 from kgn_bench.pool import LOCAL, Backend
 from kgn_bench.viz.figures import Line, Panel, line_panels, save_figure
 
-from .runner import run_benchmark
+from .runner import run_many
 from .stats import Rate
 
 __all__ = ["SweepPoint", "detector_sweep_markdown", "run_detector_sweep", "run_sweep", "sweep_figure", "sweep_markdown"]
@@ -63,11 +63,10 @@ def run_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out:
         raise ValueError("a sweep needs at least one value")
     tasks = [apply_override(task, key, v) for v in values]
     out = Path(out)
-    points = []
-    for value, t in zip(values, tasks):
-        folder = out / f"{key}={value}"
-        result = run_benchmark(t, detector, folder, workers=workers, progress=progress, backend=backend)
-        points.append(SweepPoint(value, folder, result.summary))
+    folders = [out / f"{key}={value}" for value in values]
+    results = run_many([(t, detector, f) for t, f in zip(tasks, folders)], workers=workers, progress=progress,
+                       backend=backend)  # the values' runs share one pool
+    points = [SweepPoint(v, f, r.summary) for v, f, r in zip(values, folders, results)]
     out.mkdir(parents=True, exist_ok=True)
     payload = {"task": task.name, "detector": detector, "seed": task.seed, "key": key,
                "points": [{"value": p.value, "run": str(p.out), **p.summary} for p in points]}

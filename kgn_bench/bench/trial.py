@@ -310,6 +310,8 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
                     executor.wait(task.execution.settle_time)
                 except PhysicsError as e:
                     result = AttemptResult("physics_error", detail=str(e))
+                if task.execution.remove_placed and result.reason is None and result.object is not None:
+                    scene.retire_object(result.object)  # counted in the bin: out of the round's physics
     record = {
         "success": result.reason is None,
         "reason": result.reason,

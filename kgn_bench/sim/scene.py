@@ -40,6 +40,7 @@ TABLE_RGBA = (0.5, 0.5, 0.5, 1.0)
 
 GROUP_VISUAL, GROUP_ROBOT, GROUP_COLLISION, GROUP_PROXY = 0, 1, 3, 5
 _PROXY_PARK = np.array([0.0, 0.0, 50.0])
+_RETIRED_AT = np.array([20.0, 0.0, -30.0])  # world frame, m: where retired objects rest (Scene.retire_object)
 _DIVERGENCE_WARNINGS = np.array(
     [mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC], dtype=int
 )
@@ -197,6 +198,7 @@ class Scene:
         self._proxy_bvh = int(m.body_bvhadr[proxy_body])
         self.table_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "table")
         self.collision_geoms = np.flatnonzero(m.geom_contype == 1)
+        self.retired: dict[int, np.ndarray] = {}  # object index -> its qpos at rest (retire_object)
         for i, obj in enumerate(objects):
             self.set_object_pose(i, obj.pose)
         self.forward()
@@ -209,6 +211,22 @@ class Scene:
         self.data.qpos[a + 3 : a + 7] = quat_wxyz_from_matrix(pose[:3, :3])
         v = self.qvel_adr[i]
         self.data.qvel[v : v + 6] = 0.0
+
+    def retire_object(self, i: int) -> None:
+        """Take object ``i`` out of the scene for good: its geoms stop colliding (also with the gripper proxy)
+        and it is held at rest at ``_RETIRED_AT`` + (i, 0, 0) m in the world frame, below the table and beyond
+        the camera's far plane, so it makes no contacts and is neither seen nor on the table. MuJoCo keeps the
+        body and its free joint; ``step`` puts it back there, at zero velocity, after every call (it touches
+        nothing, so nothing else feels it)."""
+        m = self.model
+        mine = np.flatnonzero(self.geom_label == i + 1)
+        m.geom_contype[mine] = 0
+        m.geom_conaffinity[mine] = 0
+        self.collision_geoms = self.collision_geoms[self.geom_label[self.collision_geoms] != i + 1]
+        self.set_object_pose(i, make_pose(np.eye(3), _RETIRED_AT + np.array([float(i), 0.0, 0.0])))
+        a = self.qpos_adr[i]
+        self.retired[i] = self.data.qpos[a : a + 7].copy()
+        self.forward()
 
     def object_pose(self, i: int) -> np.ndarray:
         """Current ``T_world_obj`` of object ``i`` from the simulator state."""
@@ -253,6 +271,10 @@ class Scene:
             mujoco.mj_step(self.model, self.data, nstep=n)
         except mujoco.FatalError as e:
             raise PhysicsError(_fatal_message(e, self.data.time)) from None
+        for i, qpos in self.retired.items():  # back to rest (raw state: a pose conversion per call costs)
+            a, v = self.qpos_adr[i], self.qvel_adr[i]
+            self.data.qpos[a : a + 7] = qpos
+            self.data.qvel[v : v + 6] = 0.0
         if np.any(self.data.warning.number[_FULL_WARNINGS] > full):
             raise PhysicsError(f"MuJoCo's arena ({self.model.narena / 2**20:.0f} MB) is full at t = "
                                f"{self.data.time:.3f} s: contacts were dropped")
