@@ -241,7 +241,7 @@ def _cmd_report(args) -> int:
 def _cmd_benchmark(args) -> int:
     from dataclasses import replace
 
-    from kgn_bench.bench.benchmark import load_plan, run_plan, run_viewpoints
+    from kgn_bench.bench.benchmark import load_plan, run_plan
     from kgn_bench.bench.report import build_report, environment_warnings, load_summaries
 
     plan = load_plan(args.plan, tasks=args.tasks, detectors=args.detectors)
@@ -251,8 +251,7 @@ def _cmd_benchmark(args) -> int:
     backend = _backend(args)
     _writable(args.runs, "runs folder")
     _writable(args.out, "report folder")
-    folders = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet, backend=backend)
-    studies = run_viewpoints(plan, args.runs, workers=args.workers, progress=not args.quiet, backend=backend)
+    folders, studies = run_plan(plan, args.runs, workers=args.workers, progress=not args.quiet, backend=backend)
     summaries = load_summaries(folders)
     text, _ = build_report(summaries, args.out or args.runs, studies)
     _print_report(text, environment_warnings(summaries), args.out or args.runs)
@@ -304,6 +303,14 @@ def _cmd_perf_run(args) -> int:
     from kgn_bench.perf import perf_run
 
     print(perf_run(args.task, detector=args.detector, trials=args.trials, workers=args.workers))
+    return 0
+
+
+def _cmd_perf_backends(args) -> int:
+    from kgn_bench.perf import perf_backends
+
+    print(perf_backends(args.task, detector=args.detector, workers=args.workers, rounds=args.rounds,
+                        address=args.address, trials=args.trials))
     return 0
 
 
@@ -619,6 +626,13 @@ def _add_perf(sub) -> None:
     pimp.add_argument("--faces", type=_int_at_least(100), default=20_000)
     pimp.add_argument("--verify", type=_int_at_least(8), default=160, help="grasps checked in physics (160)")
     pimp.set_defaults(func=_cmd_perf_import)
+    pback = psub.add_parser("backends", help="Ray's overhead against the local pool: `run` start to exit on each, "
+                            "in turn", parents=[_parent(_task, _workers(2))])
+    pback.add_argument("--detector", default="kgnv2")
+    pback.add_argument("--rounds", type=_int_at_least(1), default=3)
+    pback.add_argument("--address", help="a running Ray head to time as well, e.g. 127.0.0.1:6411")
+    pback.add_argument("--trials", type=_int_at_least(1), help="trials per object (default: the task's)")
+    pback.set_defaults(func=_cmd_perf_backends)
 
 
 def _add_closed_loop(sub) -> None:

@@ -4,13 +4,20 @@ from __future__ import annotations
 
 import os
 import platform
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 from kgn_bench.data.generate import TIMING_KEYS, GenerateConfig, generate_dataset
+from kgn_bench.errors import KGNBenchError
 
-__all__ = ["perf_data", "perf_detector", "perf_import", "perf_run"]
+__all__ = ["PerfError", "perf_backends", "perf_data", "perf_detector", "perf_import", "perf_run"]
+
+
+class PerfError(KGNBenchError, RuntimeError):
+    """A measurement that cannot be made: a command it times failed, or runs it compares differ."""
 
 
 def perf_data(scenes: int = 20, workers: int = 2, mode: str = "multi", views: int = 5, seed: int = 0) -> str:
@@ -98,6 +105,56 @@ def perf_run(task_path: str | Path, detector: str = "oracle", trials: int = 2, w
         "",
     ]
     return "\n".join(lines + _stage_table({k: 1e3 * v for k, v in t["per_trial_s"].items()}, "trial"))
+
+
+def perf_backends(task_path: str | Path, detector: str = "kgnv2", workers: int = 2, rounds: int = 3,
+                  address: str | None = None, trials: int | None = None) -> str:
+    """The overhead of Ray against the local pool: ``kgn-bench run TASK`` timed from start to exit (a new
+    process each, as a user runs it) on the local pool, on a Ray the command starts for itself, and (with
+    ``address``) on the running Ray head there, in turn for ``rounds`` rounds, each into a new folder.
+
+    Overhead = mean(Ray) / mean(local) − 1. The backends must give byte-identical ``summary.json`` files;
+    a difference or a failed command raises ``PerfError``. ``trials`` (per object) shortens the task.
+    Returns a Markdown report."""
+    from kgn_bench.config import load_task
+
+    task = load_task(task_path)
+    backends = {"local pool": [], "Ray started by the command": ["--backend", "ray"]}
+    if address:
+        backends[f"Ray head at {address}"] = ["--backend", "ray", "--address", address]
+    base = [sys.executable, "-m", "kgn_bench.cli", "run", str(task_path), "--detector", detector,
+            "--workers", str(workers), "--quiet"] + (["--trials", str(trials)] if trials else [])
+    walls: dict[str, list[float]] = {name: [] for name in backends}
+    with tempfile.TemporaryDirectory(prefix="kgn-perf-") as tmp:
+        summaries = []
+        for r in range(rounds):
+            for k, (name, extra) in enumerate(backends.items()):
+                out = Path(tmp) / f"{r}_{k}"
+                start = time.perf_counter()
+                done = subprocess.run([*base, "--out", str(out), *extra], capture_output=True, text=True)
+                walls[name].append(time.perf_counter() - start)
+                if done.returncode:
+                    last = (done.stderr.strip().splitlines() or ["no output"])[-1]
+                    raise PerfError(f"`kgn-bench run` on the {name} failed (exit {done.returncode}): {last}")
+                summaries.append((out / "summary.json").read_bytes())
+    if len(set(summaries)) != 1:
+        raise PerfError("the backends' summary.json files differ: the runs are not the same")
+    n = task.with_overrides(trials=trials).n_trials if trials else task.n_trials
+    names = list(backends)
+    local = sum(walls[names[0]]) / rounds
+    lines = [
+        f"Ray against the local pool: {task.name} with {detector}, {n} trials, {workers} workers, {os.cpu_count()} "
+        f"cores, {platform.processor() or platform.machine()}; each `kgn-bench run` timed from start to exit",
+        "",
+        "| round | " + " | ".join(names) + " |",
+        "| --- |" + " ---: |" * len(names),
+    ]
+    lines += [f"| {r + 1} | " + " | ".join(f"{walls[name][r]:.1f} s" for name in names) + " |" for r in range(rounds)]
+    means = [sum(walls[name]) / rounds for name in names]
+    cells = [f"{m:.1f} s" + ("" if i == 0 else f" (**{100 * (m / local - 1):+.1f} %**)") for i, m in enumerate(means)]
+    lines.append("| mean | " + " | ".join(cells) + " |")
+    lines += ["", f"summary.json byte-identical in all {len(summaries)} runs"]
+    return "\n".join(lines)
 
 
 def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, frames: int = 20,

@@ -144,6 +144,19 @@ def test_a_run_resumes_across_backends(task, local_run, tmp_path):
     _same_run(local_run, back)
 
 
+def test_several_runs_go_to_ray_as_one_stream_with_the_local_records(task, local_run, tmp_path):
+    """``run_many`` (a benchmark plan, a sweep) on Ray: two detectors' runs in one stream, the workers set up
+    with the first detector and building the second at its first trial; each run as the local pool's."""
+    from kgn_bench.bench.runner import run_many
+
+    run_benchmark(task, "random", tmp_path / "local_random", workers=1, progress=False)
+    runs = [(task, det, tmp_path / "ray" / det) for det in ("oracle", "random")]
+    results = run_many(runs, workers=2, progress=False, backend=LOCAL_RAY)
+    assert [r.ran for r in results] == [2, 2]
+    _same_run(local_run, tmp_path / "ray" / "oracle")
+    _same_run(tmp_path / "local_random", tmp_path / "ray" / "random")
+
+
 def test_a_dataset_generated_on_ray_is_byte_identical(tiny_dataset, tmp_path):
     root, config = tiny_dataset
     other = tmp_path / "ray"

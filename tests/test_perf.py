@@ -1,4 +1,4 @@
-"""The perf commands print their figures: dataset generation and detector timing."""
+"""The perf commands print their figures: dataset generation, detector timing, imports and the backends."""
 
 import pytest
 
@@ -29,3 +29,16 @@ def test_perf_import_times_each_stage():
     assert "1000 faces" in report and "wall:" in report
     for stage in ("repair", "decompose", "sample", "verify", "preview"):
         assert f"| {stage} |" in report
+
+
+def test_perf_backends_times_each_backend_and_requires_the_same_summary(tmp_path):
+    """Two real `kgn-bench run` commands, the local pool and a Ray each starts for itself (~10 s)."""
+    from kgn_bench.perf import PerfError, perf_backends
+
+    report = perf_backends("tasks/ci_oracle.toml", detector="oracle", workers=2, rounds=1)
+    assert "| local pool | Ray started by the command |" in report
+    row = next(line for line in report.splitlines() if line.startswith("| mean |"))
+    assert row.count(" s") == 2 and "%" in row
+    assert "byte-identical in all 2 runs" in report
+    with pytest.raises(PerfError, match=r"on the local pool failed .*no_such_detector"):
+        perf_backends("tasks/ci_oracle.toml", detector="no_such_detector", rounds=1)

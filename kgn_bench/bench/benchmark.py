@@ -15,8 +15,8 @@ A plan may add viewpoint studies, each a camera sweep (``bench.sweep``) of one t
     set = {"camera.azimuth_deg" = 0, "camera.distance" = 1.0}   # optional: the rest of the camera
     trials = 3                            # optional: the task's [task] trials
 
-run into ``RUNS/viewpoints/<name>`` (``name``: ``<task>_<param's last part>`` unless given) after the tasks;
-restricting the plan to some tasks keeps the studies of those tasks only.
+run into ``RUNS/viewpoints/<name>`` (``name``: ``<task>_<param's last part>`` unless given), on the same pool as
+the tasks; restricting the plan to some tasks keeps the studies of those tasks only.
 
 A plan is named by its path or its bundled name (``benchmark``); its task names are looked up beside the
 plan file, then among the bundled tasks. A task named ``name@mode`` is task ``name`` with ``selector.mode`` set
@@ -34,9 +34,9 @@ from kgn_bench.config import SELECTOR_MODES, ConfigError, TaskConfig, apply_over
 from kgn_bench.pool import LOCAL, Backend
 
 from .runner import run_many
-from .sweep import SweepPoint, run_detector_sweep
+from .sweep import DetectorSweep, SweepPoint
 
-__all__ = ["BenchmarkPlan", "Viewpoints", "load_plan", "run_plan", "run_viewpoints"]
+__all__ = ["BenchmarkPlan", "Viewpoints", "load_plan", "run_plan"]
 
 VIEWPOINT_KEYS = ("task", "param", "values", "set", "trials", "name")
 
@@ -140,20 +140,21 @@ def _plan_task(plan: Path, entry: str) -> TaskConfig:
     return replace(apply_override(task, "selector.mode", mode), name=f"{task.name}_{mode}")
 
 
-def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True,
-             backend: Backend = LOCAL) -> list[Path]:
-    """Run every (task, detector) of ``plan`` into ``runs``/task/detector (on ``backend``); returns the run
-    folders. Locally the runs share one pool (``runner.run_many``): the same records, no idle cores between
-    runs."""
+def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True, backend: Backend = LOCAL
+             ) -> tuple[list[Path], dict[str, tuple[Viewpoints, dict[str, list[SweepPoint]]]]]:
+    """Run every (task, detector) of ``plan`` into ``runs``/task/detector and every viewpoint study for every
+    detector into ``runs``/viewpoints/name (with its sweep table and plot, ``sweep.DetectorSweep``), on
+    ``backend``. All of these runs go to one pool (``runner.run_many``: the same records as one run after
+    another, no idle workers between runs, every check made before anything is written). Returns the task
+    runs' folders and, per study name, (study, points per detector)."""
     specs = [(task, det, Path(runs) / task.name / det) for task in plan.tasks for det in plan.detectors]
-    run_many(specs, workers=workers, progress=progress, backend=backend)
-    return [folder for _, _, folder in specs]
-
-
-def run_viewpoints(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool = True,
-                   backend: Backend = LOCAL) -> dict[str, tuple[Viewpoints, dict[str, list[SweepPoint]]]]:
-    """Run every viewpoint study of ``plan`` for every detector into ``runs``/viewpoints/name (each a
-    ``run_detector_sweep``, so its table and plot are there too); returns name → (study, points per detector)."""
-    return {v.name: (v, run_detector_sweep(v.task, list(plan.detectors), v.param, list(v.values),
-                                           Path(runs) / "viewpoints" / v.name, workers, progress, backend))
-            for v in plan.viewpoints}
+    sweeps = [(v, DetectorSweep(v.task, plan.detectors, v.param, v.values, Path(runs) / "viewpoints" / v.name))
+              for v in plan.viewpoints]
+    sweep_runs = [sweep.runs() for _, sweep in sweeps]
+    results = run_many(specs + [r for rs in sweep_runs for r in rs], workers=workers, progress=progress,
+                       backend=backend)
+    studies, k = {}, len(specs)
+    for (study, sweep), rs in zip(sweeps, sweep_runs):
+        studies[study.name] = (study, sweep.write(results[k:k + len(rs)]))
+        k += len(rs)
+    return [folder for _, _, folder in specs], studies

@@ -176,7 +176,7 @@ def _detectors(summaries: list[dict[str, Any]]) -> list[str]:
 def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
                  viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None = None) -> tuple[str, dict[str, Any]]:
     """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png}. ``viewpoints``
-    (``benchmark.run_viewpoints``: name → (study, sweep points per detector)) adds the viewpoint study: its
+    (``benchmark.run_plan``: name → (study, sweep points per detector)) adds the viewpoint study: its
     tables, and its plots copied to out/viewpoints_<name>.png."""
     if not summaries:
         raise ReportError("no runs to report")

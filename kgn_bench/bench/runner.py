@@ -13,8 +13,8 @@ Before anything is written, the detector is built once in the calling process, s
 constructor that raises or weights that do not load stop the run with one line. While a run writes to a
 folder it holds an exclusive lock on ``.lock`` there; a second run into the same folder is refused.
 
-``run_many`` runs several runs (a benchmark plan, a sweep) on one local pool: the same files, without the
-idle cores at each run's end and the workers' start per run.
+``run_many`` runs several runs (a benchmark plan, a sweep) as one stream of jobs, on one local pool or on Ray:
+the same files, without the idle workers at each run's end and the workers' start per run.
 
 With ``backend`` ray (``pool.Backend``) the trials run as Ray tasks, on a cluster or a local Ray; the cluster is
 joined and one of its workers builds the detector before anything is written, and the records come back to
@@ -357,18 +357,24 @@ def _run_any(args: tuple[int, str, TaskConfig, int]) -> tuple[int, dict[str, Any
 def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progress: bool = True,
              backend: Backend = LOCAL) -> list[RunResult]:
     """Run (or finish) several runs, each (task, detector, folder), as ``run_benchmark`` would one after another,
-    with the same files and the same records, but on one local pool of ``workers`` processes fed with the
-    trials of every run in order: a run's last trials overlap the next run's first, instead of leaving cores
-    idle, and the workers start once (each builds a detector the first time one of its trials comes). Every
-    check of ``run_benchmark`` is made for every run before anything is written, and every folder is locked
-    for the whole call. A run's ``timing.json`` ``wall_s`` is then the time it added to the call: from the
-    previous run's completion (or the start) to its own. With one worker, on Ray or for a single run, the runs
-    go one after another through ``run_benchmark``."""
+    with the same files and the same records, but as one stream of jobs fed with the trials of every run in
+    order, on one local pool of ``workers`` processes or ``workers`` Ray tasks in flight: a run's last trials
+    overlap the next run's first, instead of leaving workers idle, and the workers start once (each builds the
+    first run's detector, and any other the first time one of its trials comes). On Ray every job reserves the
+    most CPUs and GPUs any of the tasks asks for. Every check of ``run_benchmark`` is made for every run before
+    anything is written, and every folder is locked for the whole call. A run's ``timing.json`` ``wall_s`` is
+    then the time it added to the call: from the previous run's completion (or the start) to its own. With one
+    worker or for a single run, the runs go one after another through ``run_benchmark``."""
     if workers < 1:
         raise ValueError("workers must be ≥ 1")
-    if workers == 1 or backend.kind != "local" or len(runs) <= 1:
+    if workers == 1 or len(runs) <= 1:
         return [run_benchmark(t, d, o, workers=workers, progress=progress, backend=backend) for t, d, o in runs]
+    backend = backend.reserving(max(t.resources.num_cpus for t, _, _ in runs),
+                                max(t.resources.num_gpus for t, _, _ in runs))
+    setup = (runs[0][1],)
+    cluster_ready = backend.prepare(_worker_init, setup, workers)  # Ray workers build a detector meanwhile
     _check_runs([(t, d) for t, d, _ in runs], workers, progress)
+    cluster_ready()
     with ExitStack() as stack:
         writers = [_open_run(stack, task, detector, out, False, progress) for task, detector, out in runs]
         results: list[RunResult | None] = [None] * len(writers)
@@ -390,8 +396,9 @@ def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progres
             if writers[k].complete:
                 finish(k)
 
-        run_jobs(jobs, _run_any, arrived, workers=workers, initializer=pin_worker_threads, local=trial_threads,
-                 what=f"{len(writers)} runs ({sum(w.complete for w in writers)} complete)", backend=backend)
+        run_jobs(jobs, _run_any, arrived, workers=workers, initializer=_worker_init, initargs=setup,
+                 local=trial_threads, what=f"{len(writers)} runs ({sum(w.complete for w in writers)} complete)",
+                 backend=backend)
     return [r for r in results if r is not None]
 
 

@@ -21,10 +21,11 @@ from kgn_bench.io import atomic_write_text
 from kgn_bench.pool import LOCAL, Backend
 from kgn_bench.viz.figures import Line, Panel, line_panels, save_figure
 
-from .runner import run_many
+from .runner import RunResult, run_many
 from .stats import Rate
 
-__all__ = ["SweepPoint", "detector_sweep_markdown", "run_detector_sweep", "run_sweep", "sweep_figure", "sweep_markdown"]
+__all__ = ["DetectorSweep", "SweepPoint", "detector_sweep_markdown", "run_detector_sweep", "run_sweep", "sweep_figure",
+           "sweep_markdown"]
 
 
 @dataclass(frozen=True)
@@ -55,18 +56,20 @@ def sweep_markdown(task: TaskConfig, detector: str, key: str, points: list[Sweep
     return "\n".join(lines) + "\n"
 
 
-def run_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out: Path, workers: int = 1,
-              progress: bool = True, backend: Backend = LOCAL) -> list[SweepPoint]:
-    """Run ``task`` with ``detector`` once per value of setting ``key`` (``config.apply_override``); all
-    values are validated before the first trial runs."""
+def _sweep_runs(task: TaskConfig, detector: str, key: str, values: list[str], out: Path
+                ) -> list[tuple[TaskConfig, str, Path]]:
+    """The runs of a sweep, each (task at one value, detector, ``out/<key>=<value>``); every value is checked
+    here (``ConfigError``), before any trial runs."""
     if not values:
         raise ValueError("a sweep needs at least one value")
-    tasks = [apply_override(task, key, v) for v in values]
+    return [(apply_override(task, key, v), detector, Path(out) / f"{key}={v}") for v in values]
+
+
+def _write_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out: Path,
+                 runs: list[tuple[TaskConfig, str, Path]], results: list[RunResult]) -> list[SweepPoint]:
+    """The sweep's files in ``out`` from its finished runs; returns its points."""
+    points = [SweepPoint(v, f, r.summary) for v, (_, _, f), r in zip(values, runs, results)]
     out = Path(out)
-    folders = [out / f"{key}={value}" for value in values]
-    results = run_many([(t, detector, f) for t, f in zip(tasks, folders)], workers=workers, progress=progress,
-                       backend=backend)  # the values' runs share one pool
-    points = [SweepPoint(v, f, r.summary) for v, f, r in zip(values, folders, results)]
     out.mkdir(parents=True, exist_ok=True)
     payload = {"task": task.name, "detector": detector, "seed": task.seed, "key": key,
                "points": [{"value": p.value, "run": str(p.out), **p.summary} for p in points]}
@@ -74,6 +77,61 @@ def run_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out:
     atomic_write_text(out / "sweep.md", sweep_markdown(task, detector, key, points))
     save_figure(sweep_figure(task, key, {detector: points}), out / "sweep.png")
     return points
+
+
+def run_sweep(task: TaskConfig, detector: str, key: str, values: list[str], out: Path, workers: int = 1,
+              progress: bool = True, backend: Backend = LOCAL) -> list[SweepPoint]:
+    """Run ``task`` with ``detector`` once per value of setting ``key`` (``config.apply_override``); all
+    values are validated before the first trial runs, and the values' runs share one pool."""
+    runs = _sweep_runs(task, detector, key, values, out)
+    results = run_many(runs, workers=workers, progress=progress, backend=backend)
+    return _write_sweep(task, detector, key, values, out, runs, results)
+
+
+@dataclass(frozen=True)
+class DetectorSweep:
+    """A sweep of setting ``key`` over ``values`` for every detector of ``detectors``, into ``out``: each
+    detector's sweep in ``out/<detector>`` and the side-by-side files in ``out``. ``runs`` lists its runs for
+    ``runner.run_many`` (so that one pool may run several sweeps and other runs together), ``write`` makes its
+    files from their results."""
+
+    task: TaskConfig
+    detectors: tuple[str, ...]
+    key: str
+    values: tuple[str, ...]
+    out: Path
+
+    def __post_init__(self) -> None:
+        if not self.detectors:
+            raise ValueError("a sweep needs at least one detector")
+
+    def runs(self) -> list[tuple[TaskConfig, str, Path]]:
+        """Every (task at a value, detector, folder), detector by detector; checks every value."""
+        return [r for det in self.detectors
+                for r in _sweep_runs(self.task, det, self.key, list(self.values), Path(self.out) / det)]
+
+    def write(self, results: list[RunResult]) -> dict[str, list[SweepPoint]]:
+        """Each detector's sweep files and the side-by-side ones, from the results of ``runs()`` in order."""
+        runs, n, out = self.runs(), len(self.values), Path(self.out)
+        series = {det: _write_sweep(self.task, det, self.key, list(self.values), out / det,
+                                    runs[k * n:(k + 1) * n], results[k * n:(k + 1) * n])
+                  for k, det in enumerate(self.detectors)}
+        payload = {"task": self.task.name, "seed": self.task.seed, "key": self.key, "values": list(self.values),
+                   "detectors": {det: [{"value": p.value, "run": str(p.out), **p.summary} for p in points]
+                                 for det, points in series.items()}}
+        atomic_write_text(out / "sweep.json", json.dumps(payload, indent=1) + "\n")
+        atomic_write_text(out / "sweep.md", detector_sweep_markdown(self.task, self.key, series))
+        save_figure(sweep_figure(self.task, self.key, series), out / "sweep.png")
+        return series
+
+
+def run_detector_sweep(task: TaskConfig, detectors: list[str], key: str, values: list[str], out: Path,
+                       workers: int = 1, progress: bool = True, backend: Backend = LOCAL
+                       ) -> dict[str, list[SweepPoint]]:
+    """``run_sweep`` for each detector into ``out/<detector>``, all of them on one pool, then the
+    side-by-side table, JSON and plot."""
+    sweep = DetectorSweep(task, tuple(detectors), key, tuple(values), Path(out))
+    return sweep.write(run_many(sweep.runs(), workers=workers, progress=progress, backend=backend))
 
 
 def _positions(values: list[str]) -> list[float]:
@@ -96,25 +154,6 @@ def sweep_figure(task: TaskConfig, key: str, series: dict[str, list[SweepPoint]]
                               band=([100 * r.interval[0] for r in rates], [100 * r.interval[1] for r in rates])))
         panels.append(Panel(f"{task.name}: {rate} rate", key, f"{rate} rate (%)", lines))
     return line_panels(panels, suptitle=f"seed {task.seed}, Wilson 95 % bands")
-
-
-def run_detector_sweep(task: TaskConfig, detectors: list[str], key: str, values: list[str], out: Path,
-                       workers: int = 1, progress: bool = True, backend: Backend = LOCAL
-                       ) -> dict[str, list[SweepPoint]]:
-    """``run_sweep`` for each detector into ``out/<detector>``, then the side-by-side table, JSON and plot."""
-    if not detectors:
-        raise ValueError("a sweep needs at least one detector")
-    for v in values:
-        apply_override(task, key, v)  # every value checked before the first trial
-    out = Path(out)
-    series = {det: run_sweep(task, det, key, values, out / det, workers, progress, backend) for det in detectors}
-    payload = {"task": task.name, "seed": task.seed, "key": key, "values": values,
-               "detectors": {det: [{"value": p.value, "run": str(p.out), **p.summary} for p in points]
-                             for det, points in series.items()}}
-    atomic_write_text(out / "sweep.json", json.dumps(payload, indent=1) + "\n")
-    atomic_write_text(out / "sweep.md", detector_sweep_markdown(task, key, series))
-    save_figure(sweep_figure(task, key, series), out / "sweep.png")
-    return series
 
 
 def detector_sweep_markdown(task: TaskConfig, key: str, series: dict[str, list[SweepPoint]]) -> str:
