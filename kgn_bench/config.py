@@ -22,7 +22,7 @@ from kgn_bench.shapes.library import packaged, set_names
 
 __all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES",
            "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig", "SelectorConfig", "TaskConfig",
-           "apply_override", "load_task", "parse_section", "read_toml", "resolve_task"]
+           "apply_override", "load_task", "parse_section", "read_toml", "resolve_task", "task_from_dict"]
 
 PROTOCOLS = ("single_object", "multi_object", "pile", "packed")
 CLEARANCE_PROTOCOLS = ("multi_object", "pile", "packed")
@@ -353,6 +353,38 @@ def load_task(path: str | Path) -> TaskConfig:
         resources=parse_section(f"{path} [resources]", ResourceConfig, raw.get("resources", {})),
     )
     validate(cfg, str(path))
+    return cfg
+
+
+def task_from_dict(data: Any, where: str) -> TaskConfig:
+    """The ``TaskConfig`` a run folder's ``run.json`` stores under ``config`` (``TaskConfig.to_dict``, less the
+    resources, which are no part of a run's identity), checked like a task file; a key the run did not store
+    takes today's default. ``ConfigError`` with one line naming ``where`` when it is not one."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: the task config must be a table")
+    top = {f.name: f for f in fields(TaskConfig)}
+    sections = {"camera": CameraConfig, "selector": SelectorConfig, "execution": ExecutionConfig,
+                "resources": ResourceConfig}
+    kwargs: dict[str, Any] = {}
+    hints = typing.get_type_hints(TaskConfig)
+    for key, value in data.items():
+        if key not in top:
+            raise ConfigError(f"{where}: unknown key {key!r} (known: {', '.join(top)})")
+        if key in sections:
+            kwargs[key] = parse_section(f"{where} {key}", sections[key], value)
+        elif key == "objects":
+            if not isinstance(value, list) or not value or not all(isinstance(n, str) for n in value):
+                raise ConfigError(f"{where}: objects must be a non-empty list of object names, got {value!r}")
+            kwargs[key] = tuple(value)
+        else:
+            kwargs[key] = _coerce(where, key, value, hints[key])
+    for key in ("name", "protocol"):
+        if key not in kwargs:
+            raise ConfigError(f"{where}: the task config needs {key!r}")
+    if kwargs["protocol"] not in PROTOCOLS:
+        raise ConfigError(f"{where}: protocol must be one of {', '.join(PROTOCOLS)}, got {kwargs['protocol']!r}")
+    cfg = TaskConfig(**kwargs)
+    validate(cfg, where)
     return cfg
 
 

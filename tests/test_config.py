@@ -1,12 +1,21 @@
 """Task files: the shipped tasks load, and every kind of bad file is a ConfigError naming the file and the problem."""
 
+import json
 import re
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
-from kgn_bench.config import ConfigError, ResourceConfig, TaskConfig, load_task, validate
+from kgn_bench.config import (
+    ConfigError,
+    ResourceConfig,
+    TaskConfig,
+    apply_override,
+    load_task,
+    task_from_dict,
+    validate,
+)
 from kgn_bench.shapes import PRIMITIVES
 
 TASKS = Path(__file__).resolve().parents[1] / "tasks"
@@ -239,3 +248,18 @@ def test_resources_are_read_from_the_task_file(tmp_path):
     t = load_task(p)
     assert t.resources == ResourceConfig(num_cpus=2.0, num_gpus=0.25)
     assert load_task(TASKS / "single_object.toml").resources == ResourceConfig(num_cpus=1.0, num_gpus=0.0)
+
+
+def test_a_runs_stored_config_reads_back_as_the_task():
+    task = load_task(TASKS / "pile.toml")
+    task = replace(task, camera=replace(task.camera, elevation_deg=(30.0, 90.0)))
+    task = apply_override(task, "selector.mode", "raw")
+    stored = json.loads(json.dumps(task.to_dict()))  # as run.json holds it: tuples become lists
+    del stored["resources"]
+    assert task_from_dict(stored, "run.json config") == task
+    with pytest.raises(ConfigError, match=re.escape("run.json config: unknown key 'colour'")):
+        task_from_dict({**stored, "colour": 1}, "run.json config")
+    with pytest.raises(ConfigError, match=re.escape("run.json config camera: unknown key 'fov'")):
+        task_from_dict({**stored, "camera": {"fov": 60}}, "run.json config")
+    with pytest.raises(ConfigError, match="trials must be int"):
+        task_from_dict({**stored, "trials": "many"}, "run.json config")

@@ -23,6 +23,7 @@ something other than ``Candidates``, a ``detector_error`` attempt.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -43,8 +44,8 @@ from kgn_bench.sim.view_check import check_view
 from .attempt import NOT_EXECUTED, AttemptResult, execute_grasp
 from .selector import DepthView, GraspSelector, Selection
 
-__all__ = ["CAMERA_STREAM", "TIMING_KEYS", "camera_coordinates", "camera_pose", "check_cameras",
-           "run_trial", "trial_objects"]
+__all__ = ["CAMERA_STREAM", "TIMING_KEYS", "FirstCapture", "camera_coordinates", "camera_pose", "check_cameras",
+           "first_capture", "run_trial", "trial_objects"]
 
 TIMING_KEYS = ("setup", "render", "detect", "select", "simulate")
 RECORD_EVERY = 5
@@ -264,16 +265,65 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
     return attempts
 
 
-def _capture(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | None,
-             rng: np.random.Generator, clock: _Clock, recording) -> Observation:
-    """Render the task camera's view (with the depth model, if any) as the detector's observation."""
-    t = time.perf_counter()
+def _observe(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | None,
+             rng: np.random.Generator) -> Observation:
+    """The task camera's view ``cam`` (``T_world_cam``), with the depth model if any, as the detector's
+    observation."""
     view = renderer.render(cam)
     depth = view.depth if noise is None else noise.apply(view.depth, scene.intrinsics.fx, rng)
-    obs = Observation(view.rgb, depth, scene.intrinsics, cam)
+    return Observation(view.rgb, depth, scene.intrinsics, cam)
+
+
+def _capture(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | None,
+             rng: np.random.Generator, clock: _Clock, recording) -> Observation:
+    """``_observe``, timed and recorded."""
+    t = time.perf_counter()
+    obs = _observe(renderer, scene, cam, noise, rng)
     clock.add("render", t)
-    recording.observation(view.rgb, depth, scene.intrinsics.K, cam)
+    recording.observation(obs.rgb, obs.depth, scene.intrinsics.K, cam)
     return obs
+
+
+def _detect(detector: Detector, obs: Observation) -> Candidates:
+    """``detector.detect(obs)``, refused (``DetectorError``) when it returns something else than ``Candidates``."""
+    cands = detector.detect(obs)
+    if not isinstance(cands, Candidates):
+        raise DetectorError(f"detect returned {type(cands).__name__}, not Candidates")
+    return cands
+
+
+def _select(task: TaskConfig, ik: IK, cands: Candidates, obs: Observation, failed: np.ndarray) -> Selection:
+    """The task's selector over the candidates (world frame), on the points and depth of ``obs``."""
+    points = obs.points_world(stride=task.selector.point_stride)
+    return GraspSelector(task.selector, task.execution, ik).select(
+        cands.world_poses(obs.camera_pose), cands.widths, cands.confidences, cands.reprojection_errors, points,
+        failed, DepthView(obs.depth, obs.intrinsics.K, obs.camera_pose))
+
+
+@dataclass
+class FirstCapture:
+    """Trial ``index``'s first attempt up to its selection, not executed (``first_capture``): the settled
+    ``scene``, the ``observation`` of the task camera, the detector's ``candidates`` (camera frame) and the
+    selector's ``selection`` (world frame)."""
+
+    scene: Scene
+    observation: Observation
+    candidates: Candidates
+    selection: Selection
+
+
+def first_capture(task: TaskConfig, index: int, detector: Detector, ik: IK) -> FirstCapture:
+    """What ``run_trial`` sees and chooses before its first grasp: the same scene, camera, depth noise, detector
+    seed and selector, so a deterministic detector gives the recorded first attempt's candidates and selection.
+    A scene that cannot be built raises ``PhysicsError``; a detector that fails, ``DetectorError`` or its own
+    exception."""
+    scene, _ = _build_scene(task, index, ik)
+    _prepare_detector(detector, task, index, scene)
+    noise = DepthNoise(task.camera.depth_noise) if task.camera.depth_noise > 0 else None
+    with SceneRenderer(scene) as renderer:
+        obs = _observe(renderer, scene, camera_pose(task, index), noise, np.random.default_rng([task.seed, index, 0]))
+    cands = _detect(detector, obs)
+    return FirstCapture(scene, obs, cands, _select(task, ik, cands, obs, np.zeros((0, 4, 4))))
 
 
 def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,
@@ -283,21 +333,13 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
     sim0 = scene.data.time
     cands = sel = None
     try:
-        cands = detector.detect(obs)
-        if not isinstance(cands, Candidates):
-            got = type(cands).__name__
-            cands = None
-            raise DetectorError(f"detect returned {got}, not Candidates")
+        cands = _detect(detector, obs)
     except Exception as e:  # a detector bug must not stop the run: record it
         clock.add("detect", t)
         result = AttemptResult("detector_error", detail=_error_line(e))
     else:
         t = clock.add("detect", t)
-        points = obs.points_world(stride=task.selector.point_stride)
-        selector = GraspSelector(task.selector, task.execution, executor.ik)
-        sel = selector.select(cands.world_poses(obs.camera_pose), cands.widths, cands.confidences,
-                              cands.reprojection_errors, points, failed,
-                              DepthView(obs.depth, obs.intrinsics.K, obs.camera_pose))
+        sel = _select(task, executor.ik, cands, obs, failed)
         t = clock.add("select", t)
         if sel.index is None:
             result = AttemptResult(sel.reason or "no_candidate")

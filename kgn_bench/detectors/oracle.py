@@ -26,7 +26,7 @@ from kgn_bench.sim.scene import Scene
 
 from .base import Candidates, DetectorError, Observation
 
-__all__ = ["TILT_DEG", "OracleDetector", "tilted"]
+__all__ = ["TILT_DEG", "OracleDetector", "tilted", "true_grasps"]
 
 TILT_DEG = 30.0
 
@@ -35,6 +35,17 @@ def tilted(grasps: GraspSet, angles: tuple[float, ...]) -> GraspSet:
     """Every grasp turned about its own closing axis z by each of ``angles`` (rad): ``G · R_z(α)``."""
     turns = [make_pose(rot_z(a)) for a in angles]
     return GraspSet.concatenate([GraspSet(grasps.poses @ R, grasps.widths, grasps.collides) for R in turns])
+
+
+def true_grasps(scene: Scene, i: int) -> GraspSet:
+    """Object ``i``'s true grasps where it lies now (world frame): its evaluation-density families, each also
+    tilted by ±``TILT_DEG`` about the closing axis (an imported object's verified grasps untilted), minus those
+    whose labelling proxy collides with the table or another object. The oracle's candidates are these minus
+    the ones its palm and wrist cannot reach; ``eval.explain`` measures a detector's grasps against them."""
+    family = scene.objects[i].shape.grasps(EVAL_DENSITY)
+    if not scene.objects[i].shape.grasps_verified:  # a physics-verified set is used as it is
+        family = tilted(family, (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG)))
+    return label_collisions(scene, i, family.transformed(scene.object_pose(i))).free()
 
 
 class OracleDetector:
@@ -67,14 +78,11 @@ class OracleDetector:
             raise DetectorError("the oracle needs the simulator: call attach(scene) before detect()")
         scene = self._scene
         sets, centres = [], []
-        for i, obj in enumerate(scene.objects):
+        for i in range(len(scene.objects)):
             if not on_table(scene, i):
                 continue
             T = scene.object_pose(i)
-            family = obj.shape.grasps(EVAL_DENSITY)
-            if not obj.shape.grasps_verified:  # a physics-verified set is used as it is
-                family = tilted(family, (0.0, np.deg2rad(TILT_DEG), -np.deg2rad(TILT_DEG)))
-            grasps = label_collisions(scene, i, family.transformed(T)).free()
+            grasps = true_grasps(scene, i)
             pushed = grasps.poses.copy()  # where the executor closes the jaws
             pushed[:, :3, 3] += self.depth * grasps.poses[:, :3, 0]
             grasps = grasps.with_collisions(body_collisions(scene, pushed, self.approach + self.depth)).free()

@@ -40,7 +40,8 @@ from kgn_bench.types import Candidates, Observation
 
 from .vision import SHAPES, detector_call, iter_views, nearest_grasps, shape_column
 
-__all__ = ["TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image", "markdown", "write_errors"]
+__all__ = ["TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image", "grasp_errors", "markdown",
+           "write_errors"]
 
 TERMS = ("centre_px", "centre_cm", "ray_cm", "rotation_deg", "width_cm")
 """The columns of each prediction's error row."""
@@ -88,15 +89,12 @@ class ErrorTable:
         return out
 
 
-def decompose_image(pred_world: np.ndarray, pred_widths: np.ndarray, gt: list[GraspSet], types: list[str],
-                    obs: Observation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The error rows (N, len(TERMS)) of one image's predictions, their (1 cm, 20°) match against the free
-    GT grasps, and the shape each is attributed to."""
-    grasps = GraspSet.concatenate(list(gt))
+def grasp_errors(pred_world: np.ndarray, pred_widths: np.ndarray, grasps: GraspSet, obs: Observation
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The error rows (N, len(TERMS)) of predictions ``pred_world`` (N, 4, 4, world frame) against their nearest
+    grasp of ``grasps`` (world frame, N ≥ 1 and M ≥ 1), their (1 cm, 20°) match against the free ones, and the
+    index of each one's nearest grasp."""
     n = len(pred_world)
-    if n == 0 or len(grasps) == 0:
-        return np.zeros((0, len(TERMS))), np.zeros(0, dtype=bool), np.zeros(0, dtype="<U16")
-    owner = np.repeat(np.arange(len(gt)), [len(g) for g in gt])
     _, d_r, nearest, matched = nearest_grasps(pred_world, grasps)
     cam_T_world = invert_pose(obs.camera_pose)
     p = transform_points(cam_T_world, pred_world[:, :3, 3])
@@ -110,6 +108,18 @@ def decompose_image(pred_world: np.ndarray, pred_widths: np.ndarray, gt: list[Gr
         np.degrees(d_r[np.arange(n), nearest]),
         100.0 * (pred_widths - grasps.widths[nearest]),
     ], axis=1)
+    return errors, matched, nearest
+
+
+def decompose_image(pred_world: np.ndarray, pred_widths: np.ndarray, gt: list[GraspSet], types: list[str],
+                    obs: Observation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The error rows (N, len(TERMS)) of one image's predictions, their (1 cm, 20°) match against the free
+    GT grasps, and the shape each is attributed to."""
+    grasps = GraspSet.concatenate(list(gt))
+    if len(pred_world) == 0 or len(grasps) == 0:
+        return np.zeros((0, len(TERMS))), np.zeros(0, dtype=bool), np.zeros(0, dtype="<U16")
+    owner = np.repeat(np.arange(len(gt)), [len(g) for g in gt])
+    errors, matched, nearest = grasp_errors(pred_world, pred_widths, grasps, obs)
     return errors, matched, np.array([shape_column(types[i]) for i in owner[nearest]], dtype="<U16")
 
 

@@ -1,0 +1,288 @@
+"""Why a closed-loop trial went the way it did: its first capture re-created, and the detector's chosen grasp
+measured against the true grasps of the objects on the table.
+
+``explain_trial(run, index)`` reads the run folder's ``run.json`` (task config, detector, seed) and trial
+``index``'s record, re-creates the trial up to its first selection (``bench.trial.first_capture``: the same
+scene, camera, depth noise, detector seed and selector) and splits two poses' error against their nearest true
+grasp into the terms the network predicts separately (``eval.errors.grasp_errors``: centre in the image
+plane, distance along the camera ray, rotation, width):
+
+* the **candidate**: the chosen candidate as the detector predicted it (world frame ``T_world_grasp``, after
+  levelling in assisted mode: ``Selection.candidate``);
+* the **executed** grasp: where the selector sent the gripper (``Selection.grasp``: after the pose search and
+  the centring, and in the symmetric form the arm reaches).
+
+The true grasps are ``detectors.oracle.true_grasps`` of every object on the table: the labelled families with
+their ±30° tilts, minus those whose labelling proxy collides. A candidate "matches" when it lies within 1 cm and
+20° of one (the vision metrics' first threshold). So a failed trial reads as one of: the detector's pose was
+off (rotation, or the centre in the image), its scale was off (the distance along the ray), its width was off,
+or the pose was right and what followed (the selector, the arm, the physics) lost it.
+
+Only the first attempt is re-created: later attempts of a clearance round depend on what the earlier grasps
+did to the scene. The re-created selection is compared with the record; a learned detector whose weights
+changed since the run (``weights_sha256``) is named in the result, since its candidates then differ.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kgn_bench.config import ConfigError, task_from_dict
+from kgn_bench.errors import KGNBenchError
+from kgn_bench.geometry import invert_pose
+from kgn_bench.grasp import GraspSet
+from kgn_bench.io import atomic_write_text
+
+from .errors import TERMS, grasp_errors
+
+__all__ = ["ExplainError", "GraspError", "TrialExplanation", "explain_trial", "markdown", "write_explanation"]
+
+TOP = 10
+"""How many of the best-scored candidates the explanation checks against the true grasps (and draws)."""
+SHOWN_TRUTH = 40
+"""At most this many true grasps are drawn (evenly through the set)."""
+ZOOM = 2.5
+"""Largest magnification of the image's right half about the executed grasp."""
+
+
+class ExplainError(KGNBenchError):
+    """A run folder or trial that cannot be explained (no run.json, no such trial, a scene that cannot be built)."""
+
+
+@dataclass(frozen=True)
+class GraspError:
+    """One grasp's error against its nearest true grasp: ``centre_px`` (px) and ``centre_cm`` (the same in cm at
+    the true grasp's depth), ``ray_cm`` (distance from the camera, predicted − true; negative = short of it),
+    ``rotation_deg`` (symmetric geodesic angle), ``width_cm`` (predicted − true), and ``matched`` (within 1 cm
+    and 20° of a true grasp)."""
+
+    centre_px: float
+    centre_cm: float
+    ray_cm: float
+    rotation_deg: float
+    width_cm: float
+    matched: bool
+
+
+@dataclass
+class TrialExplanation:
+    """Trial ``index`` of the run in ``run``: its ``objects``, the recorded first attempt (``recorded``: reason,
+    detail, selected candidate), and the re-created one: ``candidates`` (count), ``selected`` (index or None),
+    the selector's ``rejected`` counts, the ``candidate`` and ``executed`` errors (None when nothing was
+    selected), ``top_matched`` (how many of the ``TOP`` best-scored candidates match a true grasp) and
+    ``matched`` (how many of all). ``same_as_recorded``: the re-created selection is the recorded one.
+    ``image``: the camera view twice, with true grasps (green) on the left, and on the right the best-scored
+    candidates (yellow), the executed grasp (red) and its nearest true grasp (magenta), magnified."""
+
+    run: str
+    task: str
+    detector: str
+    index: int
+    objects: list[str]
+    recorded: dict[str, Any]
+    candidates: int
+    selected: int | None
+    rejected: dict[str, int]
+    candidate: GraspError | None
+    executed: GraspError | None
+    top_matched: int
+    top: int
+    matched: int
+    same_as_recorded: bool
+    weights_changed: bool = False
+    image: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.uint8), repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        del out["image"]
+        return out
+
+
+def _read_run(run: Path) -> dict[str, Any]:
+    path = run / "run.json"
+    try:
+        identity = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ExplainError(f"{run}: not a run folder (no run.json)") from None
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ExplainError(f"{path}: unreadable ({type(e).__name__})") from None
+    if not isinstance(identity, dict) or not {"detector", "config"} <= identity.keys():
+        raise ExplainError(f"{path}: not a run's identity (needs detector and config)")
+    return identity
+
+
+def _record(run: Path, index: int) -> dict[str, Any]:
+    from kgn_bench.bench.runner import read_trials
+
+    for record in read_trials(run / "trials.jsonl"):
+        if record.get("index") == index:
+            return record
+    raise ExplainError(f"{run}: trial {index} has no record in trials.jsonl (run or resume it first)")
+
+
+def _grasp_error(row: np.ndarray, matched: bool) -> GraspError:
+    values = dict(zip(TERMS, (round(float(v), 2) for v in row), strict=True))
+    return GraspError(**values, matched=bool(matched))
+
+
+def _zoom(img: np.ndarray, box: np.ndarray, most: float) -> np.ndarray:
+    """``img`` magnified about the pixel box ``(u0, v0, u1, v1)`` so that the box with a 30 % margin fills it,
+    at most ``most`` times (the window kept inside the image)."""
+    import cv2
+
+    h, w = img.shape[:2]
+    bw, bh = 1.6 * max(box[2] - box[0], 1.0), 1.6 * max(box[3] - box[1], 1.0)
+    factor = float(np.clip(min(w / bw, h / bh), 1.0, most))
+    cw, ch = int(w / factor), int(h / factor)
+    x0 = int(np.clip((box[0] + box[2] - cw) / 2, 0, w - cw))
+    y0 = int(np.clip((box[1] + box[3] - ch) / 2, 0, h - ch))
+    return cv2.resize(img[y0:y0 + ch, x0:x0 + cw], (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def _draw(obs, truth: GraspSet, best: np.ndarray, best_widths: np.ndarray, executed: np.ndarray | None,
+          executed_width: float, nearest: np.ndarray | None) -> np.ndarray:
+    """Left: the camera view with at most ``SHOWN_TRUTH`` true grasps (green). Right: the best-scored candidates
+    (yellow), the executed grasp (red) and its nearest true grasp (magenta), magnified (at most ``ZOOM`` times)
+    about these two (or the best candidate). Boxes have the grasp's width."""
+    from kgn_bench.geometry import project
+    from kgn_bench.grasp import keypoints_in_frame
+    from kgn_bench.viz.draw import draw_grasps
+
+    T_cam_world = invert_pose(obs.camera_pose)
+    K = obs.intrinsics.K
+    shown = np.linspace(0, len(truth) - 1, min(len(truth), SHOWN_TRUTH)).astype(int) if len(truth) else []
+    left = draw_grasps(obs.rgb, T_cam_world @ truth.poses[shown], np.maximum(truth.widths[shown], 0.01), K,
+                       (0, 170, 0))
+    right = draw_grasps(obs.rgb, T_cam_world @ best, np.maximum(best_widths, 0.01), K, (255, 200, 0))
+    if nearest is not None:
+        right = draw_grasps(right, (T_cam_world @ truth.poses[nearest])[None],
+                            np.array([max(truth.widths[nearest], 0.01)]), K, (255, 0, 255), 2)
+    if executed is not None:
+        right = draw_grasps(right, (T_cam_world @ executed)[None], np.array([max(executed_width, 0.01)]), K,
+                            (255, 0, 0), 2)
+    focus = [(executed, executed_width)] if executed is not None else [(best[0], best_widths[0])] if len(best) else []
+    if nearest is not None:
+        focus.append((truth.poses[nearest], truth.widths[nearest]))
+    if focus:
+        poses = T_cam_world @ np.stack([f[0] for f in focus])
+        kpts = keypoints_in_frame(poses, np.maximum([f[1] for f in focus], 0.01)).reshape(-1, 3)
+        kpts = np.concatenate([kpts, poses[:, :3, 3]])
+        if (kpts[:, 2] > 1e-3).all():
+            uv = project(kpts, K)
+            right = _zoom(right, np.r_[uv.min(axis=0), uv.max(axis=0)], ZOOM)
+    return np.concatenate([left, right], axis=1)
+
+
+def explain_trial(run: str | Path, index: int, top: int = TOP) -> TrialExplanation:
+    """Re-create trial ``index`` of the run folder ``run`` up to its first selection and measure the chosen grasp
+    against the true grasps (module docstring). ``ExplainError`` (one line) for a folder that is not a run, a
+    trial without a record, or a scene or detector that fails."""
+    from kgn_bench.bench.runner import build_detector, run_identity
+    from kgn_bench.bench.trial import first_capture
+    from kgn_bench.detectors.base import DetectorError
+    from kgn_bench.detectors.oracle import true_grasps
+    from kgn_bench.sim.control import IK
+    from kgn_bench.sim.robot import on_table
+    from kgn_bench.sim.scene import PhysicsError
+    from kgn_bench.threads import trial_threads
+
+    run = Path(run)
+    identity = _read_run(run)
+    try:
+        task = task_from_dict(identity["config"], f"{run / 'run.json'} config")
+    except ConfigError as e:
+        raise ExplainError(str(e)) from None
+    if not 0 <= index < task.n_trials:
+        raise ExplainError(f"{run}: trial {index} is out of range (the run has trials 0-{task.n_trials - 1})")
+    record = _record(run, index)
+    name = identity["detector"]
+    detector = build_detector(name)
+    weights_changed = run_identity(task, name).get("weights_sha256") != identity.get("weights_sha256")
+    with trial_threads():
+        try:
+            cap = first_capture(task, index, detector, IK())
+        except PhysicsError as e:
+            raise ExplainError(f"{run}: trial {index}: no stable scene ({e})") from None
+        except DetectorError as e:
+            raise ExplainError(f"{run}: trial {index}: the detector failed ({e})") from None
+    scene, obs, cands, sel = cap.scene, cap.observation, cap.candidates, cap.selection
+    on = [i for i in range(len(scene.objects)) if on_table(scene, i)]
+    truth = GraspSet.concatenate([true_grasps(scene, i) for i in on]) if on else GraspSet.empty()
+    world = cands.world_poses(obs.camera_pose)
+
+    candidate = executed = nearest = None
+    if sel.index is not None and len(truth):
+        rows, matched, near = grasp_errors(np.stack([sel.candidate, sel.grasp]),
+                                           np.array([cands.widths[sel.index], cands.widths[sel.index]]), truth, obs)
+        candidate, executed, nearest = _grasp_error(rows[0], matched[0]), _grasp_error(rows[1], matched[1]), near[1]
+    all_matched = np.zeros(len(world), dtype=bool)
+    if len(world) and len(truth):
+        all_matched = grasp_errors(world, cands.widths, truth, obs)[1]
+    best = np.argsort(-sel.scores, kind="stable")[:top]
+    first = record["attempts"][0] if record.get("attempts") else {}
+    recorded = {k: first.get(k) for k in ("success", "reason", "detail", "candidates", "selected")}
+    return TrialExplanation(
+        run=str(run), task=task.name, detector=name, index=index, objects=list(record.get("objects", [])),
+        recorded=recorded, candidates=len(cands), selected=sel.index, rejected=dict(sel.rejected),
+        candidate=candidate, executed=executed, top_matched=int(all_matched[best].sum()), top=len(best),
+        matched=int(all_matched.sum()), same_as_recorded=(sel.index == first.get("selected")
+                                                          and len(cands) == first.get("candidates")),
+        weights_changed=weights_changed,
+        image=_draw(obs, truth, world[best], cands.widths[best], sel.grasp, sel.width, nearest))
+
+
+def _row(label: str, e: GraspError | None) -> str:
+    if e is None:
+        return f"| {label} | – | – | – | – | – |"
+    return (f"| {label} | {e.centre_cm:.2f} | {e.ray_cm:+.2f} | {e.rotation_deg:.1f} | {e.width_cm:+.2f} | "
+            f"{'yes' if e.matched else 'no'} |")
+
+
+def markdown(x: TrialExplanation) -> str:
+    """The explanation as a short Markdown report."""
+    rec = x.recorded
+    outcome = "success" if rec.get("success") else f"{rec.get('reason')}" + (f" ({rec['detail']})" if rec.get("detail")
+                                                                              else "")
+    rejected = ", ".join(f"{k} {v}" for k, v in x.rejected.items() if v) or "none"
+    lines = [
+        f"# Trial {x.index} of {x.run}",
+        "",
+        f"Task {x.task}, detector {x.detector}, objects: {', '.join(x.objects)}.",
+        f"Recorded first attempt: {outcome}; candidate {rec.get('selected')} of {rec.get('candidates')}.",
+        f"Re-created: candidate {x.selected} of {x.candidates} selected (rejected: {rejected})"
+        + ("." if x.same_as_recorded else "; not the recorded selection."),
+    ]
+    if x.weights_changed:
+        lines.append("The detector's weights are not those of the run: its candidates differ.")
+    lines += [
+        "",
+        "Error against the nearest true grasp (cm, degrees; ray: predicted − true distance from the camera):",
+        "",
+        "| grasp | centre (image plane) | along the ray | rotation | width | within 1 cm, 20° |",
+        "|---|---:|---:|---:|---:|---|",
+        _row("candidate (as predicted)", x.candidate),
+        _row("executed (after the selector)", x.executed),
+        "",
+        f"Candidates within 1 cm and 20° of a true grasp: {x.top_matched} of the {x.top} best-scored, "
+        f"{x.matched} of all {x.candidates}.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_explanation(x: TrialExplanation, out: str | Path) -> list[Path]:
+    """``explain.json``, ``explain.md`` and ``explain.png`` in folder ``out``, each written atomically."""
+    from kgn_bench.viz.images import save_png
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / "explain.json", out / "explain.md", out / "explain.png"]
+    atomic_write_text(paths[0], json.dumps(x.to_dict(), indent=2) + "\n")
+    atomic_write_text(paths[1], markdown(x))
+    save_png(paths[2], x.image)
+    return paths
