@@ -406,9 +406,9 @@ def _cmd_eval_show(args) -> int:
 def _cmd_eval_trial(args) -> int:
     from kgn_bench.eval.explain import explain_trial, markdown, write_explanation
 
-    out = args.out or args.run / "explain" / f"trial_{args.trial:05d}"
+    out = args.out or args.run / "explain" / f"trial_{args.trial:05d}_attempt_{args.attempt}"
     _writable(out, "explanation folder")
-    x = explain_trial(args.run, args.trial)
+    x = explain_trial(args.run, args.trial, args.attempt)
     paths = write_explanation(x, out)
     print(markdown(x))
     print(f"wrote {', '.join(str(p) for p in paths)}")
@@ -737,12 +737,14 @@ def _add_learning(sub) -> None:
     shw.add_argument("--view", type=_int_at_least(0), default=0)
     shw.add_argument("--out", type=Path, required=True, help="PNG to write")
     shw.set_defaults(func=_cmd_eval_show)
-    etr = esub.add_parser("trial", help="why a closed-loop trial went as it did: its first capture re-created, the "
+    etr = esub.add_parser("trial", help="why a closed-loop attempt went as it did: its capture re-created, the "
                           "chosen grasp's error against the true grasps (centre, ray distance, rotation, width)")
     etr.add_argument("run", type=Path, help="a run folder (with run.json and trials.jsonl)")
     etr.add_argument("--trial", type=_int_at_least(0), required=True, help="the trial's index")
-    etr.add_argument("--out", type=Path,
-                     help="folder for explain.json, explain.md and explain.png (default RUN/explain/trial_NNNNN)")
+    etr.add_argument("--attempt", type=_int_at_least(1), default=1,
+                     help="which attempt of a clearance round (default 1; the earlier ones are executed again)")
+    etr.add_argument("--out", type=Path, help="folder for explain.json, explain.md and explain.png "
+                     "(default RUN/explain/trial_NNNNN_attempt_K)")
     etr.set_defaults(func=_cmd_eval_trial)
 
 

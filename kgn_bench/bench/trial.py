@@ -23,7 +23,7 @@ something other than ``Candidates``, a ``detector_error`` attempt.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -44,8 +44,8 @@ from kgn_bench.sim.view_check import check_view
 from .attempt import NOT_EXECUTED, AttemptResult, execute_grasp
 from .selector import DepthView, GraspSelector, Selection
 
-__all__ = ["CAMERA_STREAM", "TIMING_KEYS", "FirstCapture", "camera_coordinates", "camera_pose", "check_cameras",
-           "first_capture", "run_trial", "trial_objects"]
+__all__ = ["CAMERA_STREAM", "TIMING_KEYS", "Capture", "camera_coordinates", "camera_pose", "capture",
+           "check_cameras", "run_trial", "trial_objects"]
 
 TIMING_KEYS = ("setup", "render", "detect", "select", "simulate")
 RECORD_EVERY = 5
@@ -213,7 +213,7 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
         clock.add("setup", t)
         return _fault_record(task, index, "detector_error", f"reset: {_error_line(e)}", clock, names, placed_names)
     clock.add("setup", t)
-    attempts = _episode(task, index, scene, executor, detector, clock, names, recording)
+    attempts, _ = _episode(task, index, scene, executor, detector, clock, names, recording)
     recording.close()
     removed = int(sum(a["success"] for a in attempts))
     left = sum(on_table(scene, i) for i in placed)
@@ -231,8 +231,10 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
 
 
 def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, detector: Detector, clock: _Clock,
-             names: list[str], recording) -> list[dict[str, Any]]:
-    """Capture, detect, select and execute until the protocol ends; returns the attempt records."""
+             names: list[str], recording, until: int | None = None) -> tuple[list[dict[str, Any]], Capture | None]:
+    """Capture, detect, select and execute until the protocol ends; returns the attempt records. With ``until``
+    = K, stop at attempt K's selection instead, not executing it, and return it as a ``Capture`` too (None if
+    the protocol ended first)."""
     cam = camera_pose(task, index)
     attempts: list[dict[str, Any]] = []
     max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
@@ -245,6 +247,10 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
                 break
             obs = _capture(renderer, scene, cam, noise, np.random.default_rng([task.seed, index, len(attempts)]),
                            clock, recording)
+            if until == len(attempts) + 1:
+                cands = _detect(detector, obs)
+                sel = _select(task, executor.ik, cands, obs, np.array(failed).reshape(-1, 4, 4))
+                return attempts, Capture(until, scene, obs, cands, sel)
             try:
                 attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
                                                np.array(failed).reshape(-1, 4, 4))
@@ -262,7 +268,7 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
                 break
             if task.protocol in CLUTTER_PROTOCOLS and attempt["reason"] in NOT_EXECUTED:
                 break
-    return attempts
+    return attempts, None
 
 
 def _observe(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | None,
@@ -301,29 +307,33 @@ def _select(task: TaskConfig, ik: IK, cands: Candidates, obs: Observation, faile
 
 
 @dataclass
-class FirstCapture:
-    """Trial ``index``'s first attempt up to its selection, not executed (``first_capture``): the settled
-    ``scene``, the ``observation`` of the task camera, the detector's ``candidates`` (camera frame) and the
-    selector's ``selection`` (world frame)."""
+class Capture:
+    """Attempt ``attempt`` of a trial up to its selection, not executed (``capture``): the ``scene`` as that
+    attempt found it, the ``observation`` of the task camera, the detector's ``candidates`` (camera frame),
+    the selector's ``selection`` (world frame) and the records of the attempts before it (``earlier``)."""
 
+    attempt: int
     scene: Scene
     observation: Observation
     candidates: Candidates
     selection: Selection
+    earlier: list[dict[str, Any]] = field(default_factory=list)
 
 
-def first_capture(task: TaskConfig, index: int, detector: Detector, ik: IK) -> FirstCapture:
-    """What ``run_trial`` sees and chooses before its first grasp: the same scene, camera, depth noise, detector
-    seed and selector, so a deterministic detector gives the recorded first attempt's candidates and selection.
-    A scene that cannot be built raises ``PhysicsError``; a detector that fails, ``DetectorError`` or its own
+def capture(task: TaskConfig, index: int, detector: Detector, ik: IK, attempt: int = 1) -> Capture | None:
+    """What ``run_trial`` sees and chooses at attempt ``attempt`` (1 = the first) of trial ``index``: the same
+    scene, camera, depth noise, detector seed and selector, with the earlier attempts executed as in the run,
+    so a deterministic detector gives the recorded selection. None when the trial ends before that attempt. A
+    scene that cannot be built raises ``PhysicsError``; a detector that fails, ``DetectorError`` or its own
     exception."""
-    scene, _ = _build_scene(task, index, ik)
+    scene, executor = _build_scene(task, index, ik)
     _prepare_detector(detector, task, index, scene)
-    noise = DepthNoise(task.camera.depth_noise) if task.camera.depth_noise > 0 else None
-    with SceneRenderer(scene) as renderer:
-        obs = _observe(renderer, scene, camera_pose(task, index), noise, np.random.default_rng([task.seed, index, 0]))
-    cands = _detect(detector, obs)
-    return FirstCapture(scene, obs, cands, _select(task, ik, cands, obs, np.zeros((0, 4, 4))))
+    names = [o.shape.name for o in scene.objects]
+    earlier, cap = _episode(task, index, scene, executor, detector, _Clock(), names,
+                            _open_recording(None, task, index, scene, executor), until=attempt)
+    if cap is not None:
+        cap.earlier = earlier
+    return cap
 
 
 def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,

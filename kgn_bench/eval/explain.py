@@ -1,9 +1,10 @@
-"""Why a closed-loop trial went the way it did: its first capture re-created, and the detector's chosen grasp
+"""Why a closed-loop attempt went the way it did: its capture re-created, and the detector's chosen grasp
 measured against the true grasps of the objects on the table.
 
-``explain_trial(run, index)`` reads the run folder's ``run.json`` (task config, detector, seed) and trial
-``index``'s record, re-creates the trial up to its first selection (``bench.trial.first_capture``: the same
-scene, camera, depth noise, detector seed and selector) and splits two poses' error against their nearest true
+``explain_trial(run, index, attempt)`` reads the run folder's ``run.json`` (task config, detector, seed) and
+trial ``index``'s record, re-creates the trial up to the selection of attempt ``attempt`` (``bench.trial.capture``:
+the same scene, camera, depth noise, detector seed and selector, the earlier attempts executed as in the run)
+and splits two poses' error against their nearest true
 grasp into the terms the network predicts separately (``eval.errors.grasp_errors``: centre in the image
 plane, distance along the camera ray, rotation, width):
 
@@ -18,8 +19,7 @@ their ±30° tilts, minus those whose labelling proxy collides. A candidate "mat
 off (rotation, or the centre in the image), its scale was off (the distance along the ray), its width was off,
 or the pose was right and what followed (the selector, the arm, the physics) lost it.
 
-Only the first attempt is re-created: later attempts of a clearance round depend on what the earlier grasps
-did to the scene. The re-created selection is compared with the record; a learned detector whose weights
+The re-created earlier attempts and selection are compared with the record; a learned detector whose weights
 changed since the run (``weights_sha256``) is named in the result, since its candidates then differ.
 """
 
@@ -71,18 +71,20 @@ class GraspError:
 
 @dataclass
 class TrialExplanation:
-    """Trial ``index`` of the run in ``run``: its ``objects``, the recorded first attempt (``recorded``: reason,
-    detail, selected candidate), and the re-created one: ``candidates`` (count), ``selected`` (index or None),
-    the selector's ``rejected`` counts, the ``candidate`` and ``executed`` errors (None when nothing was
-    selected), ``top_matched`` (how many of the ``TOP`` best-scored candidates match a true grasp) and
-    ``matched`` (how many of all). ``same_as_recorded``: the re-created selection is the recorded one.
-    ``image``: the camera view twice, with true grasps (green) on the left, and on the right the best-scored
-    candidates (yellow), the executed grasp (red) and its nearest true grasp (magenta), magnified."""
+    """Attempt ``attempt`` of trial ``index`` of the run in ``run``: the trial's ``objects``, the recorded
+    attempt (``recorded``: reason, detail, selected candidate), and the re-created one: ``candidates`` (count),
+    ``selected`` (index or None), the selector's ``rejected`` counts, the ``candidate`` and ``executed`` errors
+    (None when nothing was selected), ``top_matched`` (how many of the ``TOP`` best-scored candidates match a
+    true grasp) and ``matched`` (how many of all). ``same_as_recorded``: the re-created earlier attempts and
+    selection are the recorded ones. ``image``: the camera view twice, with true grasps (green) on the left,
+    and on the right the best-scored candidates (yellow), the executed grasp (red) and its nearest true grasp
+    (magenta), magnified."""
 
     run: str
     task: str
     detector: str
     index: int
+    attempt: int
     objects: list[str]
     recorded: dict[str, Any]
     candidates: int
@@ -178,12 +180,12 @@ def _draw(obs, truth: GraspSet, best: np.ndarray, best_widths: np.ndarray, execu
     return np.concatenate([left, right], axis=1)
 
 
-def explain_trial(run: str | Path, index: int, top: int = TOP) -> TrialExplanation:
-    """Re-create trial ``index`` of the run folder ``run`` up to its first selection and measure the chosen grasp
-    against the true grasps (module docstring). ``ExplainError`` (one line) for a folder that is not a run, a
-    trial without a record, or a scene or detector that fails."""
+def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP) -> TrialExplanation:
+    """Re-create trial ``index`` of the run folder ``run`` up to the selection of its attempt ``attempt`` (1 = the
+    first) and measure the chosen grasp against the true grasps (module docstring). ``ExplainError`` (one line)
+    for a folder that is not a run, a trial or attempt without a record, or a scene or detector that fails."""
     from kgn_bench.bench.runner import build_detector, run_identity
-    from kgn_bench.bench.trial import first_capture
+    from kgn_bench.bench.trial import capture
     from kgn_bench.detectors.base import DetectorError
     from kgn_bench.detectors.oracle import true_grasps
     from kgn_bench.sim.control import IK
@@ -200,16 +202,22 @@ def explain_trial(run: str | Path, index: int, top: int = TOP) -> TrialExplanati
     if not 0 <= index < task.n_trials:
         raise ExplainError(f"{run}: trial {index} is out of range (the run has trials 0-{task.n_trials - 1})")
     record = _record(run, index)
+    attempts = record.get("attempts") or []
+    if not 1 <= attempt <= len(attempts):
+        raise ExplainError(f"{run}: trial {index} has no attempt {attempt} (it made {len(attempts)})")
     name = identity["detector"]
     detector = build_detector(name)
     weights_changed = run_identity(task, name).get("weights_sha256") != identity.get("weights_sha256")
     with trial_threads():
         try:
-            cap = first_capture(task, index, detector, IK())
+            cap = capture(task, index, detector, IK(), attempt)
         except PhysicsError as e:
             raise ExplainError(f"{run}: trial {index}: no stable scene ({e})") from None
         except DetectorError as e:
             raise ExplainError(f"{run}: trial {index}: the detector failed ({e})") from None
+    if cap is None:
+        raise ExplainError(f"{run}: trial {index} ended before attempt {attempt} when re-created, unlike the record "
+                           "(another machine or package version?)")
     scene, obs, cands, sel = cap.scene, cap.observation, cap.candidates, cap.selection
     on = [i for i in range(len(scene.objects)) if on_table(scene, i)]
     truth = GraspSet.concatenate([true_grasps(scene, i) for i in on]) if on else GraspSet.empty()
@@ -224,14 +232,16 @@ def explain_trial(run: str | Path, index: int, top: int = TOP) -> TrialExplanati
     if len(world) and len(truth):
         all_matched = grasp_errors(world, cands.widths, truth, obs)[1]
     best = np.argsort(-sel.scores, kind="stable")[:top]
-    first = record["attempts"][0] if record.get("attempts") else {}
-    recorded = {k: first.get(k) for k in ("success", "reason", "detail", "candidates", "selected")}
+    mine = attempts[attempt - 1]
+    recorded = {k: mine.get(k) for k in ("success", "reason", "detail", "candidates", "selected")}
+    same = (cap.earlier == attempts[: attempt - 1] and sel.index == mine.get("selected")
+            and len(cands) == mine.get("candidates"))
     return TrialExplanation(
-        run=str(run), task=task.name, detector=name, index=index, objects=list(record.get("objects", [])),
+        run=str(run), task=task.name, detector=name, index=index, attempt=attempt,
+        objects=list(record.get("objects", [])),
         recorded=recorded, candidates=len(cands), selected=sel.index, rejected=dict(sel.rejected),
         candidate=candidate, executed=executed, top_matched=int(all_matched[best].sum()), top=len(best),
-        matched=int(all_matched.sum()), same_as_recorded=(sel.index == first.get("selected")
-                                                          and len(cands) == first.get("candidates")),
+        matched=int(all_matched.sum()), same_as_recorded=same,
         weights_changed=weights_changed,
         image=_draw(obs, truth, world[best], cands.widths[best], sel.grasp, sel.width, nearest))
 
@@ -250,12 +260,12 @@ def markdown(x: TrialExplanation) -> str:
                                                                               else "")
     rejected = ", ".join(f"{k} {v}" for k, v in x.rejected.items() if v) or "none"
     lines = [
-        f"# Trial {x.index} of {x.run}",
+        f"# Trial {x.index}, attempt {x.attempt} of {x.run}",
         "",
         f"Task {x.task}, detector {x.detector}, objects: {', '.join(x.objects)}.",
-        f"Recorded first attempt: {outcome}; candidate {rec.get('selected')} of {rec.get('candidates')}.",
+        f"Recorded: {outcome}; candidate {rec.get('selected')} of {rec.get('candidates')}.",
         f"Re-created: candidate {x.selected} of {x.candidates} selected (rejected: {rejected})"
-        + ("." if x.same_as_recorded else "; not the recorded selection."),
+        + ("." if x.same_as_recorded else "; NOT as recorded (earlier attempts or this selection differ)."),
     ]
     if x.weights_changed:
         lines.append("The detector's weights are not those of the run: its candidates differ.")
