@@ -415,6 +415,18 @@ def _cmd_eval_trial(args) -> int:
     return 0
 
 
+def _cmd_eval_failures(args) -> int:
+    from kgn_bench.eval.explain import explain_failures, failures_markdown, write_failures
+
+    out = args.out or args.run / "explain"
+    _writable(out, "explanation folder")
+    study = explain_failures(args.run, progress=not args.quiet)
+    paths = write_failures(study, out)
+    print(failures_markdown(study))
+    print(f"wrote {', '.join(str(p) for p in paths)}")
+    return 0
+
+
 def _cmd_export(args) -> int:
     from kgn_bench.model.checkpoint import export_weights
 
@@ -746,6 +758,12 @@ def _add_learning(sub) -> None:
     etr.add_argument("--out", type=Path, help="folder for explain.json, explain.md and explain.png "
                      "(default RUN/explain/trial_NNNNN_attempt_K)")
     etr.set_defaults(func=_cmd_eval_trial)
+    efl = esub.add_parser("failures", help="every failed attempt of a run explained like `eval trial`, counted by "
+                          "what failed (rotation, scale, centre, width, the selector, the execution)",
+                          parents=[_parent(_quiet)])
+    efl.add_argument("run", type=Path, help="a run folder (with run.json and trials.jsonl)")
+    efl.add_argument("--out", type=Path, help="folder for failures.json and failures.md (default RUN/explain)")
+    efl.set_defaults(func=_cmd_eval_failures)
 
 
 def _add_studies(sub) -> None:

@@ -5,11 +5,20 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import pytest
 
 from kgn_bench.cli import main
-from kgn_bench.eval.explain import ExplainError, explain_trial
+from kgn_bench.eval.explain import (
+    CATEGORIES,
+    ExplainError,
+    GraspError,
+    TrialExplanation,
+    category,
+    explain_failures,
+    explain_trial,
+)
 
 
 @pytest.mark.parametrize("detector", ["kgnv2", "oracle"])
@@ -67,3 +76,49 @@ def test_a_trial_without_a_record_is_refused(session_run, tmp_path):
     (run / "run.json").write_text('{"detector": "oracle", "config": {"name": "x"}}')
     with pytest.raises(ExplainError, match="needs 'protocol'"):
         explain_trial(run, 0)
+
+
+def _explained(candidate: GraspError | None, executed: GraspError | None) -> TrialExplanation:
+    return TrialExplanation(run="r", task="t", detector="d", index=0, attempt=1, objects=["cuboid"], recorded={},
+                            candidates=1, selected=None if candidate is None else 0, rejected={},
+                            candidate=candidate, executed=executed, top_matched=0, top=1, matched=0,
+                            same_as_recorded=True)
+
+
+@pytest.mark.parametrize(("terms", "executed_matched", "expected"), [
+    (None, None, "no_grasp"),
+    ("selected", None, "no_truth"),
+    ((0.2, 0.1, 35.0, 0.0, False), False, "rotation"),
+    ((0.2, -1.4, 5.0, 0.0, False), False, "scale"),
+    ((1.3, 0.2, 5.0, 0.0, False), False, "centre"),
+    ((0.8, 0.8, 5.0, 0.0, False), False, "position"),
+    ((0.2, 0.1, 5.0, -2.3, True), True, "width"),
+    ((0.2, 0.1, 5.0, 0.2, True), False, "moved_by_selector"),
+    ((0.2, 0.1, 5.0, 0.2, True), True, "execution"),
+])
+def test_a_failure_falls_in_the_first_category_whose_rule_holds(terms, executed_matched, expected):
+    if terms is None:
+        x = _explained(None, None)
+    elif terms == "selected":  # a grasp was chosen, but there was no true grasp to measure it against
+        x = replace(_explained(None, None), selected=3)
+    else:
+        centre, ray, rot, width, matched = terms
+        c = GraspError(centre * 20, centre, ray, rot, width, matched)
+        x = _explained(c, GraspError(0.0, 0.0, 0.0, 0.0, 0.0, executed_matched))
+    assert category(x) == expected and expected in CATEGORIES
+
+
+def test_every_failed_attempt_of_a_run_is_explained_and_counted(session_run, tmp_path, capsys):
+    run = session_run("ci_pile", "kgnv2")
+    records = [json.loads(line) for line in (run / "trials.jsonl").read_text().splitlines()]
+    failed = sorted((r["index"], k) for r in records for k, a in enumerate(r["attempts"], 1) if not a["success"])
+    study = explain_failures(run, progress=False)
+    got = sorted([(x.index, x.attempt) for x in study.explanations]
+                 + [(f["index"], f["attempt"]) for f in study.faults])
+    assert got == failed and study.attempts == sum(len(r["attempts"]) for r in records)
+    assert all(x.same_as_recorded for x in study.explanations)
+    assert sum(study.counts().values()) == len(failed)
+    assert main(["eval", "failures", str(run), "--quiet", "--out", str(tmp_path)]) == 0
+    assert f"{len(failed)} of {study.attempts} attempts failed" in capsys.readouterr().out
+    data = json.loads((tmp_path / "failures.json").read_text())
+    assert data["counts"] == study.counts() and len(data["failures"]) == len(study.explanations)

@@ -40,7 +40,8 @@ from kgn_bench.io import atomic_write_text
 
 from .errors import TERMS, grasp_errors
 
-__all__ = ["ExplainError", "GraspError", "TrialExplanation", "explain_trial", "markdown", "write_explanation"]
+__all__ = ["CATEGORIES", "ExplainError", "FailureStudy", "GraspError", "TrialExplanation", "category",
+           "explain_failures", "explain_trial", "failures_markdown", "markdown", "write_explanation", "write_failures"]
 
 TOP = 10
 """How many of the best-scored candidates the explanation checks against the true grasps (and draws)."""
@@ -118,15 +119,6 @@ def _read_run(run: Path) -> dict[str, Any]:
     return identity
 
 
-def _record(run: Path, index: int) -> dict[str, Any]:
-    from kgn_bench.bench.runner import read_trials
-
-    for record in read_trials(run / "trials.jsonl"):
-        if record.get("index") == index:
-            return record
-    raise ExplainError(f"{run}: trial {index} has no record in trials.jsonl (run or resume it first)")
-
-
 def _grasp_error(row: np.ndarray, matched: bool) -> GraspError:
     values = dict(zip(TERMS, (round(float(v), 2) for v in row), strict=True))
     return GraspError(**values, matched=bool(matched))
@@ -180,11 +172,36 @@ def _draw(obs, truth: GraspSet, best: np.ndarray, best_widths: np.ndarray, execu
     return np.concatenate([left, right], axis=1)
 
 
-def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP) -> TrialExplanation:
-    """Re-create trial ``index`` of the run folder ``run`` up to the selection of its attempt ``attempt`` (1 = the
-    first) and measure the chosen grasp against the true grasps (module docstring). ``ExplainError`` (one line)
-    for a folder that is not a run, a trial or attempt without a record, or a scene or detector that fails."""
-    from kgn_bench.bench.runner import build_detector, run_identity
+@dataclass
+class _Run:
+    """A run folder opened for explanations: its task, detector (built once) and trial records by index."""
+
+    path: Path
+    task: Any
+    detector_name: str
+    detector: Any
+    weights_changed: bool
+    records: dict[int, dict[str, Any]]
+
+
+def _open_run(run: str | Path) -> _Run:
+    from kgn_bench.bench.runner import build_detector, read_trials, run_identity
+
+    run = Path(run)
+    identity = _read_run(run)
+    try:
+        task = task_from_dict(identity["config"], f"{run / 'run.json'} config")
+    except ConfigError as e:
+        raise ExplainError(str(e)) from None
+    name = identity["detector"]
+    records = {r["index"]: r for r in read_trials(run / "trials.jsonl") if isinstance(r.get("index"), int)}
+    detector = build_detector(name)
+    changed = run_identity(task, name).get("weights_sha256") != identity.get("weights_sha256")
+    return _Run(run, task, name, detector, changed, records)
+
+
+def _explain(r: _Run, index: int, attempt: int, top: int, draw: bool) -> TrialExplanation:
+    """Attempt ``attempt`` of trial ``index`` of the opened run (its record exists and has that attempt)."""
     from kgn_bench.bench.trial import capture
     from kgn_bench.detectors.base import DetectorError
     from kgn_bench.detectors.oracle import true_grasps
@@ -193,31 +210,18 @@ def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP)
     from kgn_bench.sim.scene import PhysicsError
     from kgn_bench.threads import trial_threads
 
-    run = Path(run)
-    identity = _read_run(run)
-    try:
-        task = task_from_dict(identity["config"], f"{run / 'run.json'} config")
-    except ConfigError as e:
-        raise ExplainError(str(e)) from None
-    if not 0 <= index < task.n_trials:
-        raise ExplainError(f"{run}: trial {index} is out of range (the run has trials 0-{task.n_trials - 1})")
-    record = _record(run, index)
-    attempts = record.get("attempts") or []
-    if not 1 <= attempt <= len(attempts):
-        raise ExplainError(f"{run}: trial {index} has no attempt {attempt} (it made {len(attempts)})")
-    name = identity["detector"]
-    detector = build_detector(name)
-    weights_changed = run_identity(task, name).get("weights_sha256") != identity.get("weights_sha256")
+    record = r.records[index]
+    attempts = record["attempts"]
     with trial_threads():
         try:
-            cap = capture(task, index, detector, IK(), attempt)
+            cap = capture(r.task, index, r.detector, IK(), attempt)
         except PhysicsError as e:
-            raise ExplainError(f"{run}: trial {index}: no stable scene ({e})") from None
+            raise ExplainError(f"{r.path}: trial {index}: no stable scene ({e})") from None
         except DetectorError as e:
-            raise ExplainError(f"{run}: trial {index}: the detector failed ({e})") from None
+            raise ExplainError(f"{r.path}: trial {index}: the detector failed ({e})") from None
     if cap is None:
-        raise ExplainError(f"{run}: trial {index} ended before attempt {attempt} when re-created, unlike the record "
-                           "(another machine or package version?)")
+        raise ExplainError(f"{r.path}: trial {index} ended before attempt {attempt} when re-created, unlike the "
+                           "record (another machine or package version?)")
     scene, obs, cands, sel = cap.scene, cap.observation, cap.candidates, cap.selection
     on = [i for i in range(len(scene.objects)) if on_table(scene, i)]
     truth = GraspSet.concatenate([true_grasps(scene, i) for i in on]) if on else GraspSet.empty()
@@ -236,14 +240,107 @@ def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP)
     recorded = {k: mine.get(k) for k in ("success", "reason", "detail", "candidates", "selected")}
     same = (cap.earlier == attempts[: attempt - 1] and sel.index == mine.get("selected")
             and len(cands) == mine.get("candidates"))
+    image = _draw(obs, truth, world[best], cands.widths[best], sel.grasp, sel.width, nearest) if draw else None
     return TrialExplanation(
-        run=str(run), task=task.name, detector=name, index=index, attempt=attempt,
+        run=str(r.path), task=r.task.name, detector=r.detector_name, index=index, attempt=attempt,
         objects=list(record.get("objects", [])),
         recorded=recorded, candidates=len(cands), selected=sel.index, rejected=dict(sel.rejected),
         candidate=candidate, executed=executed, top_matched=int(all_matched[best].sum()), top=len(best),
-        matched=int(all_matched.sum()), same_as_recorded=same,
-        weights_changed=weights_changed,
-        image=_draw(obs, truth, world[best], cands.widths[best], sel.grasp, sel.width, nearest))
+        matched=int(all_matched.sum()), same_as_recorded=same, weights_changed=r.weights_changed,
+        **({"image": image} if image is not None else {}))
+
+
+def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP) -> TrialExplanation:
+    """Re-create trial ``index`` of the run folder ``run`` up to the selection of its attempt ``attempt`` (1 = the
+    first) and measure the chosen grasp against the true grasps (module docstring). ``ExplainError`` (one line)
+    for a folder that is not a run, a trial or attempt without a record, or a scene or detector that fails."""
+    run = Path(run)
+    r = _open_run(run)
+    if not 0 <= index < r.task.n_trials:
+        raise ExplainError(f"{run}: trial {index} is out of range (the run has trials 0-{r.task.n_trials - 1})")
+    if index not in r.records:
+        raise ExplainError(f"{run}: trial {index} has no record in trials.jsonl (run or resume it first)")
+    attempts = r.records[index].get("attempts") or []
+    if not 1 <= attempt <= len(attempts):
+        raise ExplainError(f"{run}: trial {index} has no attempt {attempt} (it made {len(attempts)})")
+    return _explain(r, index, attempt, top, draw=True)
+
+
+CATEGORIES = ("no_grasp", "no_truth", "rotation", "scale", "centre", "position", "width", "moved_by_selector",
+              "execution", "fault")
+"""Why a failed attempt failed, by the first rule that holds (``category``)."""
+
+
+def category(x: TrialExplanation) -> str:
+    """The failure's category, by the first rule that holds, on the candidate as predicted (``TERMS``' limits
+    of the (1 cm, 20°) match):
+
+    ``no_grasp``: no candidate passed the selector; ``no_truth``: one did, but no object on the table has a
+    collision-free true grasp to measure it against (wedged in a pile); ``rotation``: ≥ 20° from its nearest true grasp;
+    ``scale``: ≥ 1 cm off along the camera ray; ``centre``: ≥ 1 cm off in the image plane; ``position``: not
+    within 1 cm of a true grasp although each term is; ``width``: a match, with the width ≥ 1 cm off;
+    ``moved_by_selector``: a match that the selector's shifts moved out of it; ``execution``: a match executed
+    as a match (what failed is the arm, the physics, or the true grasp's own limits)."""
+    c, e = x.candidate, x.executed
+    if x.selected is None:
+        return "no_grasp"
+    if c is None or e is None:
+        return "no_truth"
+    if not c.matched:
+        if c.rotation_deg >= 20.0:
+            return "rotation"
+        if abs(c.ray_cm) >= 1.0:
+            return "scale"
+        return "centre" if c.centre_cm >= 1.0 else "position"
+    if abs(c.width_cm) >= 1.0:
+        return "width"
+    return "execution" if e.matched else "moved_by_selector"
+
+
+@dataclass
+class FailureStudy:
+    """Every failed attempt of a run explained (``explanations``, each with its ``category``), and the attempts
+    that were faults, not grasps (``faults``: ``physics_error`` and ``detector_error``, not re-created)."""
+
+    run: str
+    detector: str
+    task: str
+    attempts: int
+    explanations: list[TrialExplanation]
+    faults: list[dict[str, Any]]
+
+    def counts(self) -> dict[str, int]:
+        out = dict.fromkeys(CATEGORIES, 0)
+        for x in self.explanations:
+            out[category(x)] += 1
+        out["fault"] = len(self.faults)
+        return out
+
+
+def explain_failures(run: str | Path, top: int = TOP, progress: bool = True) -> FailureStudy:
+    """Explain every failed attempt of the run folder ``run`` (``explain_trial`` without the images); a
+    ``physics_error`` or ``detector_error`` attempt is listed as a fault. A clearance round's later attempt is
+    re-created after its earlier ones, so a run of many rounds takes a while (a progress bar shows it)."""
+    from kgn_bench.progress import Progress
+
+    r = _open_run(run)
+    todo, faults, total = [], [], 0
+    for index in sorted(r.records):
+        for k, a in enumerate(r.records[index].get("attempts") or [], start=1):
+            total += 1
+            if a.get("success"):
+                continue
+            if a.get("reason") in ("physics_error", "detector_error"):
+                faults.append({"index": index, "attempt": k, "reason": a["reason"], "detail": a.get("detail", "")})
+            else:
+                todo.append((index, k))
+    bar = Progress(len(todo), f"explain {r.detector_name} failures", unit="attempts", enabled=progress)
+    explanations = []
+    for index, k in todo:
+        explanations.append(_explain(r, index, k, top, draw=False))
+        bar.update()
+    bar.close()
+    return FailureStudy(str(r.path), r.detector_name, r.task.name, total, explanations, faults)
 
 
 def _row(label: str, e: GraspError | None) -> str:
@@ -295,4 +392,56 @@ def write_explanation(x: TrialExplanation, out: str | Path) -> list[Path]:
     atomic_write_text(paths[0], json.dumps(x.to_dict(), indent=2) + "\n")
     atomic_write_text(paths[1], markdown(x))
     save_png(paths[2], x.image)
+    return paths
+
+
+_CATEGORY_TEXT = {
+    "no_grasp": "no candidate passed the selector",
+    "no_truth": "no true grasp left to measure against",
+    "rotation": "rotation ≥ 20° off",
+    "scale": "≥ 1 cm off along the ray (scale)",
+    "centre": "≥ 1 cm off in the image plane",
+    "position": "≥ 1 cm off in 3-D, each term under its limit",
+    "width": "pose right, width ≥ 1 cm off",
+    "moved_by_selector": "pose right, moved off it by the selector",
+    "execution": "pose right and executed right",
+    "fault": "a fault, not a grasp (physics_error, detector_error)",
+}
+
+
+def failures_markdown(study: FailureStudy) -> str:
+    """The study as Markdown: the counts per category, then one row per failed attempt."""
+    n = len(study.explanations) + len(study.faults)
+    lines = [f"# Failed attempts of {study.run}", "",
+             f"Task {study.task}, detector {study.detector}: {n} of {study.attempts} attempts failed. Each is "
+             "re-created and its chosen candidate measured against the true grasps (`kgn-bench eval trial`); "
+             "the category is the first rule that holds (`kgn_bench.eval.explain.category`).", "",
+             "| category | failed attempts |", "|---|---:|"]
+    lines += [f"| {_CATEGORY_TEXT[k]} | {v} |" for k, v in study.counts().items()]
+    differ = sum(not x.same_as_recorded for x in study.explanations)
+    if differ:
+        lines += ["", f"{differ} re-created attempts differ from the record; their rows describe the re-creation."]
+    lines += ["", "| trial | attempt | outcome | centre cm | ray cm | rotation ° | width cm | category |",
+              "|---:|---:|---|---:|---:|---:|---:|---|"]
+    for x in study.explanations:
+        c = x.candidate
+        terms = ("–",) * 4 if c is None else (f"{c.centre_cm:.2f}", f"{c.ray_cm:+.2f}", f"{c.rotation_deg:.1f}",
+                                              f"{c.width_cm:+.2f}")
+        lines.append(f"| {x.index} | {x.attempt} | {x.recorded.get('reason')} | {' | '.join(terms)} | "
+                     f"{category(x)} |")
+    lines += [f"| {f['index']} | {f['attempt']} | {f['reason']} | – | – | – | – | fault |" for f in study.faults]
+    return "\n".join(lines) + "\n"
+
+
+def write_failures(study: FailureStudy, out: str | Path) -> list[Path]:
+    """``failures.json`` and ``failures.md`` in folder ``out``, each written atomically."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    data = {"run": study.run, "task": study.task, "detector": study.detector, "attempts": study.attempts,
+            "counts": study.counts(),
+            "failures": [{**x.to_dict(), "category": category(x)} for x in study.explanations],
+            "faults": study.faults}
+    paths = [out / "failures.json", out / "failures.md"]
+    atomic_write_text(paths[0], json.dumps(data, indent=2) + "\n")
+    atomic_write_text(paths[1], failures_markdown(study))
     return paths
