@@ -25,6 +25,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
+from kgn_bench import kernels
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.threads import TRIAL_THREADS, available_cores
 
@@ -53,11 +54,16 @@ class ClusterError(KGNBenchError, RuntimeError):
 
 
 def worker_env() -> dict[str, str]:
-    """``WORKER_ENV`` with this process's ``MUJOCO_GL`` (default ``egl``) and ``PYOPENGL_PLATFORM``, and its
+    """``WORKER_ENV`` with this process's ``MUJOCO_GL`` (default ``egl``), ``PYOPENGL_PLATFORM`` and kernel
+    switches (``kernels``: a worker computes with the driver's kernel set, whatever its CPU), and its
     object library ``KGN_BENCH_OBJECTS`` when set (imported objects must be at that path on every node: a
     shared filesystem, or the same import run on each)."""
     gl = os.environ.get("MUJOCO_GL", "egl")
     env = {**WORKER_ENV, "MUJOCO_GL": gl, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", gl)}
+    # the driver's kernel set: its switches, so that each worker caps its libraries as they load (OpenCV's,
+    # which depends on the worker's CPU, is set by the worker's own import of kgn_bench, before OpenCV loads)
+    kernel_vars = (kernels.KERNELS_VAR, *kernels.PORTABLE_ENV)
+    env.update({k: os.environ[k] for k in kernel_vars if k in os.environ})
     if os.environ.get("KGN_BENCH_OBJECTS"):
         env["KGN_BENCH_OBJECTS"] = os.environ["KGN_BENCH_OBJECTS"]
     return env

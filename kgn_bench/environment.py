@@ -3,26 +3,32 @@ outcome, recorded in each run's ``run.json`` and compared by ``kgn-bench report`
 
 The packages are the ones the lock file ``constraints.txt`` pins for that reason: the physics (mujoco,
 dm-control), the IK and its QP solver (mink, qpsolvers, daqp), the network (torch), PnP and image codecs
-(opencv-python-headless), the numerics (numpy, scipy) and the meshes (trimesh). The CPU model is recorded
-too: the same versions on another CPU may pick other vector kernels (torch, numpy, MuJoCo), whose last-bit
-differences flip a borderline trial now and then, so runs from different CPUs agree in their rates within
-the intervals, not trial by trial.
+(opencv-python-headless), the numerics (numpy, scipy) and the meshes (trimesh). The CPU model and the kernel
+set (``kernels.describe``) are recorded too: with the portable set every library computes with the same
+AVX2 kernels on any x86-64 CPU that has them, so two records that both hold it are the same environment
+whatever their CPUs; with native kernels the CPU is part of the environment, since another CPU may pick
+other vector kernels whose last-bit differences flip a borderline trial.
 """
 
 from __future__ import annotations
 
 import platform
+from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
-__all__ = ["OUTCOME_PACKAGES", "cpu_model", "environment", "environment_differences"]
+from kgn_bench import kernels
+
+__all__ = ["OUTCOME_PACKAGES", "cpu_model", "environment", "environment_differences", "kernel_set", "portable",
+           "renderer"]
 
 OUTCOME_PACKAGES = ("mujoco", "dm-control", "mink", "qpsolvers", "daqp", "torch", "opencv-python-headless",
                     "numpy", "scipy", "trimesh")
 
 
 def environment() -> dict[str, Any]:
-    """Python, the machine's architecture and the version of each of ``OUTCOME_PACKAGES`` (None if absent)."""
+    """Python, the machine's architecture, the CPU, the kernel set (``kernels.describe``), the OpenGL
+    renderer and the version of each of ``OUTCOME_PACKAGES`` (None if absent)."""
     packages: dict[str, str | None] = {}
     for name in OUTCOME_PACKAGES:
         try:
@@ -30,7 +36,29 @@ def environment() -> dict[str, Any]:
         except PackageNotFoundError:
             packages[name] = None
     return {"python": platform.python_version(), "machine": platform.machine(), "cpu": cpu_model(),
-            "packages": packages}
+            "kernels": kernels.describe(), "renderer": renderer(), "packages": packages}
+
+
+@lru_cache(maxsize=1)
+def renderer() -> str | None:
+    """The OpenGL implementation that renders the camera images (``MUJOCO_GL``'s), e.g. ``Mesa 22.3.6,
+    llvmpipe (LLVM 15.0.6, 256 bits)``: a system library, not a Python package, and its version can move a
+    pixel. None if no context can be made."""
+    try:
+        import mujoco
+        from OpenGL import GL
+
+        ctx = mujoco.GLContext(1, 1)
+        ctx.make_current()
+        try:
+            version, name = (GL.glGetString(k).decode() for k in (GL.GL_VERSION, GL.GL_RENDERER))
+        finally:
+            ctx.free()
+    except Exception:  # no display, no EGL: the record says unknown
+        return None
+    version = version.split(" ", 1)[1] if " " in version else version  # "4.5 (Compatibility Profile) Mesa …"
+    version = version.split(") ", 1)[-1]
+    return f"{version}, {name}"
 
 
 def cpu_model(cpuinfo: str | None = None) -> str | None:
@@ -64,11 +92,27 @@ def cpu_model(cpuinfo: str | None = None) -> str | None:
     return f"{name} ({', '.join(details)})" if details else name
 
 
+def kernel_set(record: dict[str, Any]) -> str:
+    """The kernel set of an ``environment()`` record: ``kernels.PORTABLE`` or ``native`` (records made before
+    the kernels were recorded computed with native kernels)."""
+    return (record.get("kernels") or {}).get("set", "native")
+
+
+def portable(record: dict[str, Any]) -> bool:
+    """Whether the record's run computed with the portable kernel set, so that its CPU does not matter."""
+    return kernel_set(record) == kernels.PORTABLE
+
+
 def environment_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
-    """What differs between two ``environment()`` records, as ``name a → b`` strings (empty if nothing)."""
+    """What differs between two ``environment()`` records, as ``name a → b`` strings (empty if nothing). The
+    CPUs of two records that both computed with the portable kernel set are not a difference."""
     out = [f"{k} {a.get(k)} → {b.get(k)}" for k in ("python", "machine") if a.get(k) != b.get(k)]
-    if a.get("cpu") and b.get("cpu") and a["cpu"] != b["cpu"]:  # records made before the CPU was recorded: unknown
-        out.append(f"cpu {a['cpu']} → {b['cpu']}")
+    if a.get("renderer") and b.get("renderer") and a["renderer"] != b["renderer"]:  # unknown in older records
+        out.append(f"renderer {a['renderer']} → {b['renderer']}")
+    if kernel_set(a) != kernel_set(b):
+        out.append(f"kernels {kernel_set(a)} → {kernel_set(b)}")
+    elif a.get("cpu") and b.get("cpu") and a["cpu"] != b["cpu"] and not portable(a):
+        out.append(f"cpu {a['cpu']} → {b['cpu']}")  # records made before the CPU was recorded: unknown
     pa, pb = a.get("packages", {}), b.get("packages", {})
     out += [f"{k} {pa.get(k)} → {pb.get(k)}" for k in sorted(set(pa) | set(pb)) if pa.get(k) != pb.get(k)]
     return out

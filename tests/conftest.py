@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+# First, before numpy loads: kgn_bench caps every library's CPU kernels at the portable set (kgn_bench.kernels)
+# and sets MUJOCO_GL before MuJoCo is imported.
+import kgn_bench  # noqa: F401
+
+# isort: split
 import numpy as np
 import pytest
 
-import kgn_bench  # noqa: F401  (sets MUJOCO_GL before MuJoCo is imported)
 from kgn_bench.data.generate import GenerateConfig, generate_dataset
 
 
@@ -20,9 +24,10 @@ def tiny_dataset(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def session_run(tmp_path_factory):
-    """``session_run(task, detector)``: the run folder of bundled ``tasks/<task>.toml`` with ``detector`` on the
-    local pool (2 workers), run once per test session whoever asks first; readers must not write to it (the CI
-    regression check and the Ray comparison read the same oracle run)."""
+    """``session_run(task, detector, trials=None)``: the run folder of bundled ``tasks/<task>.toml`` (with its
+    trial count, or ``trials``) with ``detector`` on the local pool (2 workers), run once per test session
+    whoever asks first; readers must not write to it (the CI regression check and ``eval trial`` read the
+    same runs)."""
     from pathlib import Path
 
     from kgn_bench.cli import main
@@ -30,14 +35,15 @@ def session_run(tmp_path_factory):
     tasks = Path(__file__).resolve().parents[1] / "tasks"
     runs = {}
 
-    def run(task: str, detector: str):
-        if (task, detector) not in runs:
+    def run(task: str, detector: str, trials: int | None = None):
+        key = (task, detector, trials)
+        if key not in runs:
             out = tmp_path_factory.mktemp(task) / detector
             argv = ["run", str(tasks / f"{task}.toml"), "--detector", detector, "--workers", "2", "--quiet",
-                    "--out", str(out)]
+                    "--out", str(out)] + (["--trials", str(trials)] if trials else [])
             assert main(argv) == 0
-            runs[task, detector] = out
-        return runs[task, detector]
+            runs[key] = out
+        return runs[key]
 
     return run
 

@@ -104,3 +104,30 @@ def test_the_hard_tier_is_its_own_table_with_gsr_dr_fallen_and_giga(tmp_path):
     assert "| GIGA (published) | 83.5 | 84.3 | 69.3 | 49.8 |" in text and "free-floating hand" in text
     assert payload["fallen"]["kgnv2/pile"] == {"fell_at_setup": 0, "fallen": 2}
     assert payload["detectors"]["oracle"]["packed success"]["k"] == 49
+
+
+def _with_environment(folder, env):
+    (folder / "run.json").write_text(json.dumps({"environment": env}))
+    return folder
+
+
+def test_the_environment_line_says_whether_the_cpu_matters(tmp_path):
+    from kgn_bench.bench.report import environment_warnings
+    from kgn_bench.environment import environment
+
+    env = environment()
+    portable = {**env, "kernels": {"set": "x86-64-v3", "reason": "", "effective": {}}}
+    native = {**env, "kernels": {"set": "native", "reason": "KGN_BENCH_KERNELS=native", "effective": {}}}
+    a = _with_environment(_run(tmp_path / "a", "single_object", "kgnv2", (10, 12)), portable)
+    b = _with_environment(_run(tmp_path / "b", "single_object", "oracle", (12, 12)), {**portable, "cpu": "Other CPU"})
+    summaries = load_summaries([a, b])
+    text, _ = build_report(summaries)
+    assert "with the portable x86-64-v3 kernels (any x86-64 CPU with AVX2 gives the same records" in text
+    assert environment_warnings(summaries) == []
+    for folder, e in ((a, native), (b, {**native, "cpu": "Other CPU"})):
+        _with_environment(folder, e)
+    summaries = load_summaries([a, b])
+    text, _ = build_report(summaries)
+    assert "Environment: MIXED" in text
+    (warning,) = environment_warnings(summaries)
+    assert warning.endswith("→ Other CPU")

@@ -8,7 +8,9 @@ real-robot figures (KGNv2 Tab. III and IV) in the columns that correspond to the
 protocols (``pile``, ``packed``) form the hard tier, a table of its own: GSR (successes / attempts) and DR
 (clear rate: removed / on the table) per task, detector-only (``raw``) and assisted rows side by side, the
 objects that fell off the table, and GIGA's published simulation figures as context. Writes
-``benchmark.md``, ``benchmark.json`` and ``benchmark.png`` (a grouped bar chart with interval whiskers).
+``benchmark.md``, ``benchmark.json``, ``benchmark.png`` (a grouped bar chart with interval whiskers) and
+``benchmark.html`` (``html_report``: the same tables, the chart and links to replays, for a browser). Run
+folders and results bundles (``bundle``) are read alike.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from kgn_bench.errors import KGNBenchError
 from kgn_bench.io import atomic_write, atomic_write_text
 
 from .attempt import FAILURE_REASONS
+from .html_report import write_html
 from .stats import Rate, per_object_meaning
 
 __all__ = ["COLUMNS", "DETECTOR_ORDER", "GIGA", "HARD_PROTOCOLS", "PAPER", "Column", "ReportError", "build_report",
@@ -30,7 +33,7 @@ __all__ = ["COLUMNS", "DETECTOR_ORDER", "GIGA", "HARD_PROTOCOLS", "PAPER", "Colu
 
 
 class ReportError(KGNBenchError, RuntimeError):
-    """A run folder that cannot be reported (missing or unreadable summary, two runs for one cell)."""
+    """A run folder or bundle that cannot be reported (missing or unreadable summary, two runs for one cell)."""
 
 
 @dataclass(frozen=True)
@@ -98,9 +101,15 @@ def _paper_cell(figure: tuple[float, float, int] | None) -> str:
 
 
 def load_summaries(folders: list[Path]) -> list[dict[str, Any]]:
-    """The ``summary.json`` of each run folder, with ``run`` set to the folder."""
+    """The ``summary.json`` of each run folder, with ``run`` set to the folder, and the summaries of each
+    results bundle (``bundle.read_bundle``) among ``folders``."""
+    from .bundle import is_bundle, read_bundle
+
     out = []
     for folder in folders:
+        if is_bundle(folder):
+            out += read_bundle(folder)
+            continue
         path = Path(folder) / "summary.json"
         if not path.is_file():
             raise ReportError(f"{folder}: no summary.json (run `kgn-bench run` into it first)")
@@ -151,9 +160,15 @@ def _environment_line(summaries: list[dict[str, Any]]) -> str:
 
     if any(environment_differences(envs[0], e) for e in envs[1:]) or len(envs) < len(summaries):
         return "Environment: MIXED (see the warnings of `kgn-bench report`)."
+    from kgn_bench.environment import portable
+
     e = envs[0]
-    cpu = f" ({e['cpu']})" if e.get("cpu") else ""
-    return (f"Environment: Python {e['python']} on {e['machine']}{cpu}, "
+    if portable(e):
+        where = (f" with the portable {e['kernels']['set']} kernels (any x86-64 CPU with AVX2 gives the same records; "
+                 f"measured on {e.get('cpu') or 'an unrecorded CPU'})")
+    else:
+        where = f" ({e['cpu']}, native kernels: another CPU may flip borderline trials)" if e.get("cpu") else ""
+    return (f"Environment: Python {e['python']} on {e['machine']}{where}, "
             + ", ".join(f"{k} {v}" for k, v in e["packages"].items()) + ".")
 
 
@@ -175,7 +190,7 @@ def _detectors(summaries: list[dict[str, Any]]) -> list[str]:
 
 def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
                  viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None = None) -> tuple[str, dict[str, Any]]:
-    """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png}. ``viewpoints``
+    """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png,html}. ``viewpoints``
     (``benchmark.run_plan``: name → (study, sweep points per detector)) adds the viewpoint study: its
     tables, and its plots copied to out/viewpoints_<name>.png."""
     if not summaries:
@@ -258,6 +273,7 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
         atomic_write_text(out / "benchmark.md", text)
         atomic_write_text(out / "benchmark.json", json.dumps(payload, indent=1) + "\n")
         _chart(detectors, every, rate, out / "benchmark.png")
+        write_html(text, summaries, out)
     return text, payload
 
 
