@@ -257,17 +257,18 @@ def _kill_one_job_worker(started: Path, killed: list[int], stop: threading.Event
 def test_the_ci_regression_task_on_a_ray_head_matches_the_local_run_with_a_worker_killed(ray_head, tmp_path,
                                                                                           session_run):
     """The driver is a `kgn-bench run --backend ray --address` process of its own, as on a real cluster; the
-    local run (the local pool, 2 workers) is the session's, which the CI regression check also reads."""
+    local run (the local pool, 2 workers) is the session's; 4 of the task's scenes."""
     address, env = ray_head
     task = str(TASKS / "ci_regression.toml")
-    local, on_ray = session_run("ci_regression", "oracle"), tmp_path / "ray"
+    local, on_ray = session_run("ci_regression", "oracle", trials=4), tmp_path / "ray"
     killed: list[int] = []
     stop = threading.Event()
     killer = threading.Thread(target=_kill_one_job_worker, args=(on_ray / "run.json", killed, stop), daemon=True)
     killer.start()
     try:
         driver = subprocess.run([str(Path(sys.executable).parent / "kgn-bench"), "run", task, "--detector", "oracle",
-                                 "--quiet", "--backend", "ray", "--address", address, "--out", str(on_ray)],
+                                 "--trials", "4", "--quiet", "--backend", "ray", "--address", address, "--out",
+                                 str(on_ray)],
                                 capture_output=True, text=True, timeout=400, env=env)
     finally:
         stop.set()
