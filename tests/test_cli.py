@@ -85,7 +85,7 @@ def test_export_eval_and_show_commands(tiny_dataset, tmp_path, capsys, small_mod
     root, _ = tiny_dataset
     small_model(tmp_path / "final.pt", optimizer={"state": {}}, epoch=1, history=HISTORY, git_commit="abc1234",
                 train={"name": "train_x", "train": {"batch_size": 8}})
-    assert main(["export", str(tmp_path / "final.pt"), "--name", "mine", "--out", str(tmp_path / "w")]) == 0
+    assert main(["ship", str(tmp_path / "final.pt"), "--name", "mine", "--out", str(tmp_path / "w")]) == 0
     shipped = load_checkpoint(tmp_path / "w" / "mine.pt")
     assert "optimizer" not in shipped and shipped["epoch"] == 1
     card = (tmp_path / "w" / "mine.md").read_text()

@@ -31,6 +31,7 @@ import numpy as np
 
 from kgn_bench.config import CLUTTER_PROTOCOLS, TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
+from kgn_bench.geometry import quat_wxyz_from_matrix
 from kgn_bench.shapes import sample_shape
 from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.control import IK, Executor
@@ -151,7 +152,7 @@ def _error_line(e: BaseException) -> str:
 
 def _failed_attempt(reason: str, detail: str) -> dict[str, Any]:
     return {"success": False, "reason": reason, "object": None, "candidates": 0, "selected": None, "score": None,
-            "rejected": {}, "detail": detail, "sim_time": 0.0}
+            "grasp": None, "width": None, "rejected": {}, "detail": detail, "sim_time": 0.0}
 
 
 def _fault_record(task: TaskConfig, index: int, reason: str, detail: str, clock: _Clock,
@@ -336,6 +337,15 @@ def capture(task: TaskConfig, index: int, detector: Detector, ik: IK, attempt: i
     return cap
 
 
+def _grasp_pose(sel: Selection | None) -> list[float] | None:
+    """The executed grasp of a selection, world frame: position (m) then unit quaternion (w, x, y, z), each
+    rounded to 6 decimals; None when nothing was selected."""
+    if sel is None or sel.index is None or sel.grasp is None:
+        return None
+    T = sel.grasp
+    return [round(float(v), 6) for v in (*T[:3, 3], *quat_wxyz_from_matrix(T[:3, :3]))]
+
+
 def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,
              clock: _Clock, names: list[str], failed: np.ndarray
              ) -> tuple[dict[str, Any], Selection | None, Candidates | None]:
@@ -371,6 +381,8 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
         "candidates": 0 if cands is None else len(cands),
         "selected": None if sel is None or sel.index is None else sel.index,
         "score": None if sel is None or sel.index is None else round(float(sel.scores[sel.index]), 6),
+        "grasp": _grasp_pose(sel),
+        "width": None if sel is None or sel.index is None else round(float(sel.width), 6),
         "rejected": {} if sel is None else dict(sel.rejected),
         "detail": result.detail,
         "sim_time": round(scene.data.time - sim0, 3),

@@ -94,7 +94,7 @@ class ModelSpec:
         from kgn_bench.model.train import load_train_config
 
         out = load_train_config(Path(self.config).stem).train.out
-        return f"kgn-bench train {self.config} && kgn-bench export {out}/final.pt --name {self.weights}"
+        return f"kgn-bench train {self.config} && kgn-bench ship {out}/final.pt --name {self.weights}"
 
 
 MODELS: dict[str, ModelSpec] = {
