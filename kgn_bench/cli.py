@@ -214,9 +214,14 @@ def _cmd_sweep(args) -> int:
 
 
 def _run_folders(paths: list[Path]) -> list[Path]:
+    """Run folders and results bundles: each path is one, or a folder holding some (e.g. runs/benchmark, or a
+    leaderboard's folder of bundles)."""
     folders = []
-    for path in paths:  # a run folder, or a folder of run folders (e.g. runs/benchmark)
-        found = [path] if (path / "summary.json").is_file() else sorted(p.parent for p in path.rglob("summary.json"))
+    for path in paths:
+        if (path / "summary.json").is_file() or (path / "bundle.json").is_file():
+            folders.append(path)
+            continue
+        found = sorted({p.parent for pattern in ("summary.json", "bundle.json") for p in path.rglob(pattern)})
         folders += found or [path]
     return folders
 
@@ -225,7 +230,7 @@ def _print_report(text: str, warnings: list[str], out: Path) -> None:
     print(text)
     for w in warnings:
         _warn(w)
-    print(f"wrote {out}/benchmark.md, benchmark.json, benchmark.png")
+    print(f"wrote {out}/benchmark.md, benchmark.json, benchmark.png, benchmark.html")
 
 
 def _cmd_report(args) -> int:
@@ -259,18 +264,30 @@ def _cmd_benchmark(args) -> int:
 
 
 def _cmd_check(args) -> int:
-    from kgn_bench.bench.check import baseline_for, compare, format_check, read_baseline, read_summary, write_baseline
+    from kgn_bench.bench.check import (
+        CheckError,
+        baseline_for,
+        check,
+        format_check,
+        read_baseline,
+        read_run,
+        write_baseline,
+    )
 
-    summary = read_summary(args.run)
+    run = read_run(args.run)
     if args.update_baseline:
+        if args.against:
+            raise CheckError("--against and --update-baseline do not go together: a baseline is the run's own "
+                             "detector's")
         _writable_file(args.baseline, "baseline")
-        write_baseline(summary, args.baseline)
-        print(f"wrote baseline {args.baseline}")
+        write_baseline(run, args.baseline)
+        print(f"wrote baseline {args.baseline} ({run.summary['detector']}: rates and the fingerprint of "
+              f"{len(run.fingerprint.trials)} trials)")
         return 0
-    baseline = baseline_for(read_baseline(args.baseline), summary["detector"], args.baseline)
-    rows = compare(summary, baseline)
-    print(format_check(rows, summary, baseline))
-    return 1 if any(r.regressed for r in rows) else 0
+    detector = args.against or run.summary["detector"]
+    result = check(run, baseline_for(read_baseline(args.baseline), detector, args.baseline), args.against)
+    print(format_check(result, run))
+    return 1 if result.regressed else 0
 
 
 def _cmd_replay(args) -> int:
@@ -384,6 +401,13 @@ def _cmd_eval_physics(args) -> int:
     return 0
 
 
+def _cmd_perf_kernels(args) -> int:
+    from kgn_bench.bench.kernel_study import study
+
+    print(study(records=args.records))
+    return 0
+
+
 def _cmd_perf_detector(args) -> int:
     from kgn_bench.perf import perf_detector
 
@@ -408,7 +432,7 @@ def _cmd_eval_trial(args) -> int:
 
     out = args.out or args.run / "explain" / f"trial_{args.trial:05d}_attempt_{args.attempt}"
     _writable(out, "explanation folder")
-    x = explain_trial(args.run, args.trial, args.attempt)
+    x = explain_trial(args.run, args.trial, args.attempt, detector=args.detector)
     paths = write_explanation(x, out)
     print(markdown(x))
     print(f"wrote {', '.join(str(p) for p in paths)}")
@@ -420,7 +444,7 @@ def _cmd_eval_failures(args) -> int:
 
     out = args.out or args.run / "explain"
     _writable(out, "explanation folder")
-    study = explain_failures(args.run, progress=not args.quiet)
+    study = explain_failures(args.run, progress=not args.quiet, detector=args.detector)
     paths = write_failures(study, out)
     print(failures_markdown(study))
     print(f"wrote {', '.join(str(p) for p in paths)}")
@@ -428,6 +452,15 @@ def _cmd_eval_failures(args) -> int:
 
 
 def _cmd_export(args) -> int:
+    from kgn_bench.bench.bundle import export_bundles
+
+    _writable(args.out, "bundle folder")
+    for folder in export_bundles(_run_folders(args.runs), args.out, overwrite=args.overwrite):
+        print(f"wrote {folder}")
+    return 0
+
+
+def _cmd_ship(args) -> int:
     from kgn_bench.model.checkpoint import export_weights
 
     _writable(args.out, "weights folder")
@@ -657,6 +690,11 @@ def _add_perf(sub) -> None:
     pback.add_argument("--address", help="a running Ray head to time as well, e.g. 127.0.0.1:6411")
     pback.add_argument("--trials", type=_int_at_least(1), help="trials per object (default: the task's)")
     pback.set_defaults(func=_cmd_perf_backends)
+    pker = psub.add_parser("kernels", help="which library's CPU dispatch changes images, detections and records, "
+                           "and the portable kernel set's cost (one process a variant)")
+    pker.add_argument("--records", action="store_true",
+                      help="also compare the records of the CI regression tasks (about 1 min a variant)")
+    pker.set_defaults(func=_cmd_perf_kernels)
 
 
 def _add_closed_loop(sub) -> None:
@@ -688,14 +726,25 @@ def _add_closed_loop(sub) -> None:
     bm.add_argument("--no-viewpoints", action="store_true",
                     help="skip the plan's viewpoint studies (camera sweeps; RUNS/viewpoints)")
     bm.set_defaults(func=_cmd_benchmark)
-    rep = sub.add_parser("report", help="the benchmark table, failure reasons and bar chart from run folders")
-    rep.add_argument("runs", type=Path, nargs="+", help="run folders, or folders holding run folders")
+    rep = sub.add_parser("report", help="the benchmark table, failure reasons and bar chart from run folders "
+                         "or results bundles (Markdown, JSON, PNG and an HTML page)")
+    rep.add_argument("runs", type=Path, nargs="+",
+                     help="run folders or results bundles, or folders holding them")
     rep.add_argument("--out", type=Path, default=Path("results"), help="report folder (default results)")
     rep.set_defaults(func=_cmd_report)
+    exp = sub.add_parser("export", help="results bundles to publish: one folder per detector (summaries, a CSV of "
+                         "every attempt, task configs and their hashes, the environment, the detector's card)")
+    exp.add_argument("runs", type=Path, nargs="+", help="finished run folders, or folders holding them")
+    exp.add_argument("--out", type=Path, required=True, help="folder to write the bundles into")
+    exp.add_argument("--overwrite", action="store_true", help="replace bundles of the same detectors")
+    exp.set_defaults(func=_cmd_export)
     check = sub.add_parser("check", help="fail (exit 1) when a run's rates dropped below a baseline's")
     check.add_argument("run", type=Path, help="run folder holding summary.json")
     check.add_argument("--baseline", type=Path, required=True, help="baseline JSON")
-    check.add_argument("--update-baseline", action="store_true", help="write the run's rates as the baseline")
+    check.add_argument("--update-baseline", action="store_true",
+                       help="write the run's rates and fingerprint as its detector's baseline")
+    check.add_argument("--against", metavar="DETECTOR",
+                       help="compare with this detector's baseline instead of the run's own (statistical test)")
     check.set_defaults(func=_cmd_check)
     replay = sub.add_parser("replay", help="open a run's rerun recording, serve it to a browser, or save a copy")
     replay.add_argument("run", type=Path, help="run folder or .rrd file")
@@ -721,12 +770,12 @@ def _add_learning(sub) -> None:
     tr.add_argument("--device", help="torch device (default: cuda when present, else cpu)")
     tr.add_argument("--threads", type=_int_at_least(1), help="CPU threads for torch (default: all cores)")
     tr.set_defaults(func=_cmd_train)
-    ex = sub.add_parser("export", help="ship a trained checkpoint as weights with a model card")
+    ex = sub.add_parser("ship", help="ship a trained checkpoint as weights with a model card")
     ex.add_argument("checkpoint", type=Path, help="a training run's final.pt (or last.pt)")
     ex.add_argument("--name", required=True, help="weights name (kgnv2, kgn, ...)")
     ex.add_argument("--out", type=Path, default=Path("assets/weights"),
                     help="folder (default assets/weights: the shipped weights, run from the repository)")
-    ex.set_defaults(func=_cmd_export)
+    ex.set_defaults(func=_cmd_ship)
     ev = sub.add_parser("eval", help="evaluate detectors")
     esub = ev.add_subparsers(dest="eval_command", required=True, parser_class=_Parser)
     vis = esub.add_parser("vision", help="GSR / GCR / OSR on a PS dataset split",
@@ -757,12 +806,16 @@ def _add_learning(sub) -> None:
                      help="which attempt of a clearance round (default 1; the earlier ones are executed again)")
     etr.add_argument("--out", type=Path, help="folder for explain.json, explain.md and explain.png "
                      "(default RUN/explain/trial_NNNNN_attempt_K)")
+    etr.add_argument("--detector", help="required for a run of a module:attribute detector, and must be the one it "
+                                        "ran (a run folder names no code to import by itself)")
     etr.set_defaults(func=_cmd_eval_trial)
     efl = esub.add_parser("failures", help="every failed attempt of a run explained like `eval trial`, counted by "
                           "what failed (rotation, scale, centre, width, the selector, the execution)",
                           parents=[_parent(_quiet)])
     efl.add_argument("run", type=Path, help="a run folder (with run.json and trials.jsonl)")
     efl.add_argument("--out", type=Path, help="folder for failures.json and failures.md (default RUN/explain)")
+    efl.add_argument("--detector", help="required for a run of a module:attribute detector, and must be the one it "
+                                        "ran (a run folder names no code to import by itself)")
     efl.set_defaults(func=_cmd_eval_failures)
 
 
@@ -839,14 +892,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command. Every error a user can cause ends here as one line and exit status 2: the project's
+    """Run one command. SIGTERM and SIGHUP stop it as Ctrl-C does (exit 128 + the signal, 130 for Ctrl-C),
+    with its workers (``kgn_bench.lifecycle``). Every error a user can cause ends here as one line and exit
+    status 2: the project's
     own (``KGNBenchError``), the operating system's (``OSError``: a path that cannot be read or written, a
     full disk) and bad argument values (``ValueError``). Status 1 is kept for ``check``'s regression."""
     from kgn_bench.errors import KGNBenchError
+    from kgn_bench.lifecycle import Stopped, interrupts_as_keyboard
 
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with interrupts_as_keyboard():  # SIGTERM and SIGHUP end a command as Ctrl-C does
+            return int(args.func(args) or 0)
+    except Stopped as e:
+        sys.stderr.write(f"kgn-bench: {e}\n")
+        return 128 + e.signum
     except KeyboardInterrupt:
         sys.stderr.write("kgn-bench: interrupted\n")
         return 130

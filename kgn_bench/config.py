@@ -8,6 +8,7 @@ out-of-range values and unknown object names are errors (``ConfigError``).
 
 from __future__ import annotations
 
+import re
 import types
 import typing
 from dataclasses import asdict, dataclass, field, fields, replace
@@ -18,7 +19,7 @@ import tomllib
 
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
-from kgn_bench.shapes.library import packaged, set_names
+from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
 __all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES",
            "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig", "SelectorConfig", "TaskConfig",
@@ -339,6 +340,8 @@ def load_task(path: str | Path) -> TaskConfig:
         raise ConfigError(f"{path}: [objects] set must be a non-empty list of object names, or a set's name "
                           "(pybullet_test)")
     for n in names:
+        if not NAME_PATTERN.fullmatch(n):
+            raise ConfigError(f"{path}: object {n!r} is not an object name (lower case, digits, _ -; no paths)")
         if not (is_known(n) or packaged(n)):
             raise ConfigError(f"{path}: unknown object {n!r} (known: {', '.join(known_names())}; "
                               "import a mesh with `kgn-bench objects add`)")
@@ -388,8 +391,19 @@ def task_from_dict(data: Any, where: str) -> TaskConfig:
     return cfg
 
 
+TASK_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}")
+"""A task's name: it names the run's folder under ``runs/``, so letters, digits, ``_ . -`` only, not leading
+with a dot (no path separators, no absolute paths, no ``..``)."""
+
+
 def validate(cfg: TaskConfig, where: str = "task") -> None:
     """Range checks shared by files and command-line overrides."""
+    if not isinstance(cfg.name, str) or not TASK_NAME.fullmatch(cfg.name):
+        raise ConfigError(f"{where}: task name {cfg.name!r} must be letters, digits, _ . - (not starting with a dot; "
+                          "it names the run's folder)")
+    bad = [n for n in cfg.objects if not NAME_PATTERN.fullmatch(n)]
+    if bad:
+        raise ConfigError(f"{where}: object {bad[0]!r} is not an object name (lower case, digits, _ -; no paths)")
     if cfg.trials < 1:
         raise ConfigError(f"{where}: trials must be ≥ 1, got {cfg.trials}")
     if cfg.seed < 0:

@@ -3,7 +3,8 @@
 Callers keep their own record of finished work on disk (``trials.jsonl``, whole scene folders) and pass
 only the jobs still to do, so a rerun resumes. Jobs run in this process when ``workers`` is 1 (or one job is
 left), else in ``spawn``ed worker processes, each set up once by ``initializer``; results come back as they
-finish and ``on_result`` stores each at once, so a kill loses only the jobs in flight.
+finish and ``on_result`` stores each at once, so a kill loses only the jobs in flight. Workers die with this
+process, and an exception or a signal here stops them at once (``kgn_bench.lifecycle``).
 
 ``backend`` says where the jobs run: ``Backend()`` (the default) is this machine's pool above;
 ``Backend("ray", address)`` hands them to ``kgn_bench.cluster`` (one Ray task per job, results streamed back to
@@ -12,6 +13,7 @@ this process, which stores them exactly as with the local pool). Ray is imported
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -21,6 +23,7 @@ from multiprocessing import get_context
 from typing import Any, TypeVar
 
 from kgn_bench.errors import KGNBenchError
+from kgn_bench.lifecycle import start_worker, stop_workers
 
 __all__ = ["BACKENDS", "LOCAL", "Backend", "PoolError", "run_jobs"]
 
@@ -103,17 +106,17 @@ def run_jobs(jobs: Sequence[J], work: Callable[[J], R], on_result: Callable[[R],
             for job in jobs:
                 on_result(work(job))
         return
+    pool = ProcessPoolExecutor(min(workers, len(jobs)), mp_context=get_context("spawn"), initializer=start_worker,
+                               initargs=(os.getpid(), initializer, *initargs))
     try:
-        with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=get_context("spawn"), initializer=initializer,
-                                 initargs=tuple(initargs)) as pool:
-            futures = [pool.submit(work, job) for job in jobs]
-            try:
-                for fut in as_completed(futures):
-                    on_result(fut.result())
-            except BaseException:
-                for f in futures:
-                    f.cancel()
-                raise
+        futures = [pool.submit(work, job) for job in jobs]
+        for fut in as_completed(futures):
+            on_result(fut.result())
     except BrokenProcessPool:
+        stop_workers(pool)
         raise PoolError(f"a worker process died while running {what}; the finished ones are kept, rerun the same "
                         "command to resume") from None
+    except BaseException:  # an error, Ctrl-C, SIGTERM: the workers stop now, the finished jobs are kept
+        stop_workers(pool)
+        raise
+    pool.shutdown(wait=True)

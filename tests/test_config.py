@@ -85,6 +85,11 @@ def test_defaults_fill_optional_sections(tmp_path):
         (HEAD + "[resources]\nnum_cpus = 0\n", "num_cpus must be > 0, got 0.0"),
         (HEAD + "[resources]\nnum_gpus = -1\n", "num_gpus must be ≥ 0, got -1.0"),
         (HEAD + "[resources]\nmemory = 4\n", "[resources]: unknown key 'memory' (known: num_cpus, num_gpus)"),
+        (HEAD.replace('name = "t"', 'name = "../../escaped/x"'), "task name '../../escaped/x' must be letters"),
+        (HEAD.replace('name = "t"', 'name = "/abs/x"'), "task name '/abs/x' must be letters"),
+        (HEAD.replace('name = "t"', 'name = ".hidden"'), "not starting with a dot"),
+        ('[task]\nname = "t"\nprotocol = "single_object"\n[objects]\nset = ["/etc/passwd"]\n',
+         "object '/etc/passwd' is not an object name"),
     ],
     ids=[
         "malformed",
@@ -110,6 +115,10 @@ def test_defaults_fill_optional_sections(tmp_path):
         "num_cpus_0",
         "num_gpus_negative",
         "unknown_resources_key",
+        "name_with_dots",
+        "name_absolute",
+        "name_hidden",
+        "object_path",
     ],
 )
 def test_bad_task_files_name_the_file_and_the_problem(tmp_path, body, fragment):

@@ -78,12 +78,27 @@ def test_a_trial_without_a_record_is_refused(session_run, tmp_path):
         explain_trial(run, 0)
 
 
+def test_a_run_folder_never_makes_the_tool_import_code_named_in_it(session_run, tmp_path, capsys):
+    """Run folders are shared between labs: a detector named module:attribute inside one is not imported
+    unless the command line names it too."""
+
+    run = tmp_path / "run"
+    run.mkdir()
+    src = session_run("ci_regression", "oracle")
+    identity = json.loads((src / "run.json").read_text())
+    (run / "run.json").write_text(json.dumps({**identity, "detector": "os:abort"}))
+    (run / "trials.jsonl").write_text((src / "trials.jsonl").read_text())
+    for argv in (["eval", "trial", str(run), "--trial", "0"], ["eval", "failures", str(run), "--quiet"]):
+        assert main(argv) == 2
+        assert "is code outside kgn-bench" in capsys.readouterr().err
+    assert main(["eval", "trial", str(run), "--trial", "0", "--detector", "mine:det"]) == 2
+    assert "ran detector 'os:abort', not 'mine:det'" in capsys.readouterr().err
+
 def _explained(candidate: GraspError | None, executed: GraspError | None) -> TrialExplanation:
     return TrialExplanation(run="r", task="t", detector="d", index=0, attempt=1, objects=["cuboid"], recorded={},
                             candidates=1, selected=None if candidate is None else 0, rejected={},
                             candidate=candidate, executed=executed, top_matched=0, top=1, matched=0,
                             same_as_recorded=True)
-
 
 @pytest.mark.parametrize(("terms", "executed_matched", "expected"), [
     (None, None, "no_grasp"),
@@ -106,7 +121,6 @@ def test_a_failure_falls_in_the_first_category_whose_rule_holds(terms, executed_
         c = GraspError(centre * 20, centre, ray, rot, width, matched)
         x = _explained(c, GraspError(0.0, 0.0, 0.0, 0.0, 0.0, executed_matched))
     assert category(x) == expected and expected in CATEGORIES
-
 
 def test_every_failed_attempt_of_a_run_is_explained_and_counted(session_run, tmp_path, capsys):
     run = session_run("ci_pile", "kgnv2")

@@ -115,6 +115,8 @@ def test_names_are_checked(tmp_path, object_library):
         import_mesh(path, "mug", FAST, root=tmp_path / "lib")
     with pytest.raises(ObjectError, match="lower-case"):
         import_mesh(path, "My Mesh", FAST, root=tmp_path / "lib")
+    with pytest.raises(ObjectError, match="lower-case"):
+        import_mesh(path, "block\n", FAST, root=tmp_path / "lib")  # a trailing newline is no name
     with pytest.raises(ObjectError, match="already exists"):
         import_mesh(path, "test_block", FAST, root=object_library)
 

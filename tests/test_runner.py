@@ -335,6 +335,17 @@ def test_a_physics_fault_is_the_trials_physics_error_and_the_run_goes_on(tmp_pat
     assert {k: v for k, v in result.summary["failures"].items() if v} == {"physics_error": 1}
 
 
+def test_a_lock_planted_as_a_symbolic_link_is_refused_and_its_target_kept(tmp_path, capsys):
+    out, target = tmp_path / "run", tmp_path / "precious"
+    out.mkdir()
+    target.write_text("keep me")
+    (out / ".lock").symlink_to(target)
+    argv = ["run", str(_small_task(tmp_path)), "--detector", "oracle", "--trials", "1", "--out", str(out), "--quiet"]
+    assert main(argv) == 2
+    assert "is a symbolic link" in capsys.readouterr().err
+    assert target.read_text() == "keep me"
+
+
 def test_a_second_run_into_a_folder_in_use_is_refused(tmp_path, capsys):
     from kgn_bench.bench.runner import run_lock
 

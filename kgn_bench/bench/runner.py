@@ -23,9 +23,11 @@ this process, which writes the same files: a run may start on one backend and re
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
+import stat
 import subprocess
 import time
 from collections.abc import Iterator
@@ -146,9 +148,20 @@ def _prepare(out: Path, identity: dict[str, Any]) -> None:
 @contextmanager
 def run_lock(out: Path) -> Iterator[None]:
     """Hold the exclusive lock of the run folder ``out`` (``out/.lock``) for the block; ``RunError`` at once
-    if another process holds it. The lock goes with the process, so a killed run leaves none behind."""
+    if another process holds it. The lock goes with the process, so a killed run leaves none behind. The file
+    is opened without following a symbolic link (``RunError`` for one), so a planted link truncates nothing."""
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / ".lock", "a+") as f:
+    path = out / ".lock"
+    try:  # never through a symbolic link: a planted one would make the run truncate its target
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise RunError(f"{path} is a symbolic link; remove it (a run folder's lock must be a plain file)") from None
+        raise
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise RunError(f"{path} is not a plain file; remove it")
+    with open(fd, "a+") as f:
         try:
             fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -184,7 +184,23 @@ class _Run:
     records: dict[int, dict[str, Any]]
 
 
-def _open_run(run: str | Path) -> _Run:
+def _trusted_detector(run: Path, recorded: Any, given: str | None) -> str:
+    """The detector to build for a run folder: a registered name as recorded; a ``module:attribute`` one only
+    when the command line names it too (``given``), since a run folder is data and must not make the tool
+    import code named inside it."""
+    from kgn_bench.detectors import DETECTORS
+
+    if not isinstance(recorded, str):
+        raise ExplainError(f"{run / 'run.json'}: the detector must be a name, got {recorded!r}")
+    if given is not None and given != recorded:
+        raise ExplainError(f"{run}: ran detector {recorded!r}, not {given!r}")
+    if recorded not in DETECTORS and given is None:
+        raise ExplainError(f"{run}: its detector {recorded!r} is code outside kgn-bench; a run folder does not "
+                           f"choose code to run, so name it yourself: --detector {recorded}")
+    return recorded
+
+
+def _open_run(run: str | Path, detector: str | None = None) -> _Run:
     from kgn_bench.bench.runner import build_detector, read_trials, run_identity
 
     run = Path(run)
@@ -193,7 +209,7 @@ def _open_run(run: str | Path) -> _Run:
         task = task_from_dict(identity["config"], f"{run / 'run.json'} config")
     except ConfigError as e:
         raise ExplainError(str(e)) from None
-    name = identity["detector"]
+    name = _trusted_detector(run, identity["detector"], detector)
     records = {r["index"]: r for r in read_trials(run / "trials.jsonl") if isinstance(r.get("index"), int)}
     detector = build_detector(name)
     changed = run_identity(task, name).get("weights_sha256") != identity.get("weights_sha256")
@@ -250,12 +266,15 @@ def _explain(r: _Run, index: int, attempt: int, top: int, draw: bool) -> TrialEx
         **({"image": image} if image is not None else {}))
 
 
-def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP) -> TrialExplanation:
+def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP,
+                  detector: str | None = None) -> TrialExplanation:
     """Re-create trial ``index`` of the run folder ``run`` up to the selection of its attempt ``attempt`` (1 = the
     first) and measure the chosen grasp against the true grasps (module docstring). ``ExplainError`` (one line)
-    for a folder that is not a run, a trial or attempt without a record, or a scene or detector that fails."""
+    for a folder that is not a run, a trial or attempt without a record, or a scene or detector that fails.
+    A run of a ``module:attribute`` detector needs that name as ``detector`` (a run folder names no code to
+    import on its own)."""
     run = Path(run)
-    r = _open_run(run)
+    r = _open_run(run, detector)
     if not 0 <= index < r.task.n_trials:
         raise ExplainError(f"{run}: trial {index} is out of range (the run has trials 0-{r.task.n_trials - 1})")
     if index not in r.records:
@@ -317,13 +336,14 @@ class FailureStudy:
         return out
 
 
-def explain_failures(run: str | Path, top: int = TOP, progress: bool = True) -> FailureStudy:
+def explain_failures(run: str | Path, top: int = TOP, progress: bool = True,
+                     detector: str | None = None) -> FailureStudy:
     """Explain every failed attempt of the run folder ``run`` (``explain_trial`` without the images); a
     ``physics_error`` or ``detector_error`` attempt is listed as a fault. A clearance round's later attempt is
     re-created after its earlier ones, so a run of many rounds takes a while (a progress bar shows it)."""
     from kgn_bench.progress import Progress
 
-    r = _open_run(run)
+    r = _open_run(run, detector)
     todo, faults, total = [], [], 0
     for index in sorted(r.records):
         for k, a in enumerate(r.records[index].get("attempts") or [], start=1):

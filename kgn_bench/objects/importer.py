@@ -249,7 +249,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
 
     path = Path(path)
     t0 = time.perf_counter()
-    if not NAME_PATTERN.match(name):
+    if not NAME_PATTERN.fullmatch(name):
         raise ObjectError(f"object name {name!r}: use lower-case letters, digits, '_' and '-' (≤ 63 characters)")
     if name in OBJECTS:
         raise ObjectError(f"object name {name!r} is a built-in object type; choose another")
@@ -290,6 +290,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     mass = config.mass if config.mass is not None else config.density * volume
     root.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=root))
+    tmp.chmod(0o755)  # mkdtemp's 0700 would hide the object from workers running as another user
     try:
         mesh.export(tmp / "visual.ply")
         (tmp / "collision").mkdir()

@@ -48,7 +48,7 @@ __all__ = [
 ]
 
 ENV_VAR = "KGN_BENCH_OBJECTS"
-NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_\-]{0,62}$")
+NAME_PATTERN = re.compile(r"[a-z0-9][a-z0-9_\-]{0,62}")
 """Object names: lower-case letters, digits, '_' and '-', at most 63 characters (they become folder names)."""
 
 
@@ -69,7 +69,7 @@ def list_objects() -> dict[str, Path]:
     for root in library_roots():
         if root.is_dir():
             for manifest in sorted(root.glob(f"*/{MANIFEST}")):
-                if NAME_PATTERN.match(manifest.parent.name):  # not temporary folders of an import
+                if NAME_PATTERN.fullmatch(manifest.parent.name):  # not temporary folders of an import
                     found.setdefault(manifest.parent.name, manifest.parent)
     return found
 
