@@ -491,3 +491,44 @@ def test_runs_on_one_shared_pool_give_the_same_files_as_one_after_another(tmp_pa
         assert (pool / "summary.json").read_bytes() == (seq / "summary.json").read_bytes()
         assert _records(pool) == _records(seq)
         assert json.loads((pool / "timing.json").read_text())["workers"] == 2
+
+
+def test_a_resume_after_an_objects_files_changed_is_refused_naming_it(tmp_path, object_library, capsys):
+    """The run identity holds each imported object's content hash: a re-import between a kill and the resume
+    would otherwise mix two meshes in one run."""
+    import numpy as np
+
+    task = tmp_path / "t.toml"
+    task.write_text('[task]\nname = "blocks"\nprotocol = "single_object"\ntrials = 2\n'
+                    '[objects]\nset = ["test_block"]\n')
+    out = tmp_path / "run"
+    argv = ["run", str(task), "--detector", "oracle", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    identity = json.loads((out / "run.json").read_text())
+    assert set(identity["objects_sha256"]) == {"test_block"} and "detector_fingerprint" not in identity
+    assert main(argv) == 0  # nothing changed: the finished run is taken as it is
+    grasps = object_library / "test_block" / "grasps.npz"
+    backup = tmp_path / "grasps.npz"
+    shutil.copy(grasps, backup)
+    try:
+        with np.load(grasps) as g:
+            np.savez(grasps, poses=g["poses"][:-1], widths=g["widths"][:-1])
+        capsys.readouterr()
+        assert main(argv) == 2
+        assert "object test_block changed since the run started" in capsys.readouterr().err
+    finally:
+        shutil.copy(backup, grasps)
+    assert main(argv) == 0
+
+
+def test_a_user_detectors_fingerprint_is_recorded_and_checked(tmp_path, capsys, monkeypatch):
+    import spoilt_detector
+
+    out = tmp_path / "run"
+    argv = ["run", str(_small_task(tmp_path)), "--detector", "spoilt_detector:EveryFifthBlind", "--trials", "1",
+            "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    assert json.loads((out / "run.json").read_text())["detector_fingerprint"] is None  # none declared: recorded
+    monkeypatch.setattr(spoilt_detector.EveryFifthBlind, "fingerprint", "weights-v2", raising=False)
+    assert main(argv) == 2
+    assert "the fingerprint of detector spoilt_detector:EveryFifthBlind changed" in capsys.readouterr().err

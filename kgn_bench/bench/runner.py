@@ -84,9 +84,28 @@ def _weights_identity(detector: str) -> str | None:
     return file_sha256(weights_path(detector))
 
 
-def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
-    """What makes two runs the same run (and so resumable into one folder): task, seed, config and, for a
-    learned detector, the hash of its weights."""
+CONTENT_KEYS = ("weights_sha256", "objects_sha256", "detector_fingerprint")
+"""Identity entries about content rather than settings; a run folder written before one of them was recorded
+resumes without it."""
+
+
+def _detector_fingerprint(instance: Any) -> str | None:
+    """A user detector's declared ``fingerprint`` (e.g. the SHA-256 of its weights), as a string; None when it
+    declares none."""
+    value = getattr(instance, "fingerprint", None)
+    if callable(value):
+        value = value()
+    return None if value is None else str(value)
+
+
+def run_identity(task: TaskConfig, detector: str, instance: Any = None) -> dict[str, Any]:
+    """What makes two runs the same run (and so resumable into one folder): task, seed, config and content:
+    for a learned detector the hash of its weights, for each imported object the hash of its files
+    (``shapes.library.object_sha256``), and for a ``module:attribute`` detector ``instance``'s declared
+    ``fingerprint`` (null when it declares none, so the record shows that nothing vouches for its weights)."""
+    from kgn_bench.detectors import DETECTORS
+    from kgn_bench.shapes.library import object_sha256
+
     config = task.to_dict()
     del config["resources"]  # where the trials run does not change them (config.ResourceConfig)
     if not task.clearance:  # one attempt a trial: nothing is left to remove (config.ExecutionConfig)
@@ -96,7 +115,32 @@ def run_identity(task: TaskConfig, detector: str) -> dict[str, Any]:
     weights = _weights_identity(detector)
     if weights is not None:
         identity["weights_sha256"] = weights
+    objects = {name: sha for name in dict.fromkeys(task.objects) if (sha := object_sha256(name)) is not None}
+    if objects:
+        identity["objects_sha256"] = objects
+    if detector not in DETECTORS:
+        identity["detector_fingerprint"] = _detector_fingerprint(instance)
     return identity
+
+
+def _identity_change(existing: dict[str, Any], identity: dict[str, Any]) -> str | None:
+    """What differs between a run folder's stored identity and this run's, in words (None if nothing). A
+    content entry the folder did not record (written by an older version) is not compared."""
+    mine = {k: v for k, v in existing.items() if k not in ("commit", "environment")}
+    theirs = {k: v for k, v in identity.items() if k in mine or k not in CONTENT_KEYS}
+    if mine == theirs:
+        return None
+    old, new = mine.get("objects_sha256") or {}, theirs.get("objects_sha256") or {}
+    changed = sorted(n for n in old.keys() & new.keys() if old[n] != new[n])
+    if changed:
+        return f"object {', '.join(changed)} changed since the run started (its files differ)"
+    if mine.get("weights_sha256") != theirs.get("weights_sha256"):
+        return f"the weights of {identity['detector']} changed since the run started"
+    if mine.get("detector_fingerprint") != theirs.get("detector_fingerprint"):
+        return (f"the fingerprint of detector {identity['detector']} changed since the run started "
+                f"({mine.get('detector_fingerprint')!r} → {theirs.get('detector_fingerprint')!r})")
+    diff = [k for k in theirs if mine.get(k) != theirs[k]] + [k for k in mine if k not in theirs]
+    return f"different {', '.join(dict.fromkeys(diff))}"
 
 
 def read_trials(path: Path) -> list[dict[str, Any]]:
@@ -134,10 +178,9 @@ def _prepare(out: Path, identity: dict[str, Any]) -> None:
             existing = json.loads(run_file.read_text())
         except json.JSONDecodeError:
             raise RunError(f"{run_file} is corrupt; remove the folder or use another --out") from None
-        mine = {k: v for k, v in existing.items() if k not in ("commit", "environment")}
-        if mine != identity:
-            diff = [k for k in identity if mine.get(k) != identity[k]]
-            raise RunError(f"{out} holds another run (different {', '.join(diff)}); use another --out")
+        change = _identity_change(existing, identity)
+        if change is not None:
+            raise RunError(f"{out} holds another run ({change}); use another --out")
     elif any(p.name != ".lock" for p in out.iterdir()):
         raise RunError(f"{out} is not empty and holds no run; use another --out")
     else:
@@ -330,11 +373,11 @@ def _check_runs(runs: list[tuple[TaskConfig, str]], workers: int, progress: bool
 
 
 def _open_run(stack: ExitStack, task: TaskConfig, detector: str, out: Path, record: bool,
-              progress: bool) -> _RunWriter:
+              progress: bool, instance: Any = None) -> _RunWriter:
     """Lock the run folder ``out`` for the life of ``stack``, check or write its ``run.json``, and return the
     writer of its remaining trials."""
     out = Path(out)
-    identity = json.loads(json.dumps(run_identity(task, detector)))  # as it reads back from run.json
+    identity = json.loads(json.dumps(run_identity(task, detector, instance)))  # as it reads back from run.json
     stack.enter_context(run_lock(out))
     _prepare(out, identity)
     return _RunWriter(task, detector, out, identity, record, progress)
@@ -352,7 +395,7 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
     instance = _check_runs([(task, detector)], workers, progress)[detector]
     cluster_ready()  # a cluster that cannot run the trials stops here too
     with ExitStack() as stack:
-        writer = _open_run(stack, task, detector, out, record, progress)
+        writer = _open_run(stack, task, detector, out, record, progress, instance)
         start = time.perf_counter()
         _worker_setup(detector, instance)  # the in-process path uses the detector built above
         run_jobs(writer.jobs(), _run_one, writer.add, workers=workers, initializer=_worker_init,
@@ -386,10 +429,11 @@ def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progres
                                 max(t.resources.num_gpus for t, _, _ in runs))
     setup = (runs[0][1],)
     cluster_ready = backend.prepare(_worker_init, setup, workers)  # Ray workers build a detector meanwhile
-    _check_runs([(t, d) for t, d, _ in runs], workers, progress)
+    built = _check_runs([(t, d) for t, d, _ in runs], workers, progress)
     cluster_ready()
     with ExitStack() as stack:
-        writers = [_open_run(stack, task, detector, out, False, progress) for task, detector, out in runs]
+        writers = [_open_run(stack, task, detector, out, False, progress, built[detector])
+                   for task, detector, out in runs]
         results: list[RunResult | None] = [None] * len(writers)
         jobs = [(k, w.detector, task, i) for k, w in enumerate(writers) for task, i, _ in w.jobs()]
         clock = {"last": time.perf_counter()}

@@ -20,6 +20,7 @@ them).
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 from functools import lru_cache
@@ -41,6 +42,7 @@ __all__ = [
     "library_roots",
     "list_objects",
     "load_object",
+    "object_sha256",
     "packaged",
     "pybullet_numbers",
     "set_names",
@@ -94,6 +96,27 @@ def load_object(name: str) -> MeshObject:
     if folder is None:
         raise ObjectError(f"unknown object {name!r}: no folder {name}/ in {', '.join(map(str, library_roots()))}")
     return _load(folder, (folder / MANIFEST).stat().st_mtime)
+
+
+@lru_cache(maxsize=1024)
+def _folder_sha256(folder: Path, stamps: tuple[tuple[str, int, int], ...]) -> str:
+    h = hashlib.sha256()
+    for rel, _, _ in stamps:
+        h.update(rel.encode() + b"\0")
+        h.update(hashlib.sha256((folder / rel).read_bytes()).digest())
+    return h.hexdigest()
+
+
+def object_sha256(name: str) -> str | None:
+    """SHA-256 of an imported object's content: every file of its folder (manifest, grasps, collision hulls,
+    visual mesh; not the preview picture), by relative path; None for a built-in shape. Two runs that name
+    the same object with other content are different experiments (``bench.runner.run_identity``)."""
+    folder = find_object(name)
+    if folder is None:
+        return None
+    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "preview.png")
+    stamps = tuple((p.relative_to(folder).as_posix(), p.stat().st_mtime_ns, p.stat().st_size) for p in files)
+    return _folder_sha256(folder, stamps)
 
 
 PYBULLET_SPLIT_SEED = 0
