@@ -21,7 +21,7 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def _int_at_least(lo: int):
+def _int_at_least(lo: int, hi: int | None = None):
     def parse(text: str) -> int:
         try:
             v = int(text)
@@ -29,6 +29,8 @@ def _int_at_least(lo: int):
             raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
         if v < lo:
             raise argparse.ArgumentTypeError(f"must be ≥ {lo}, got {v}")
+        if hi is not None and v > hi:
+            raise argparse.ArgumentTypeError(f"must be ≤ {hi}, got {v}")
         return v
 
     return parse
@@ -296,6 +298,9 @@ def _cmd_replay(args) -> int:
     path = args.run / "recording.rrd" if args.run.is_dir() else args.run
     if not path.is_file():
         raise RecordingError(f"{path} not found: run with --record first")
+    with open(path, "rb") as f:
+        if f.read(3) != b"RRF":  # rerun's file magic (RRF2 today)
+            raise RecordingError(f"{path} is not a rerun recording (.rrd)")
     if args.still:
         from kgn_bench.viz.still import save_still
 
@@ -498,12 +503,16 @@ def _cmd_experiment(args) -> int:
 
 def _cmd_objects_add(args) -> int:
     from kgn_bench.objects.importer import ImportConfig, import_mesh
+    from kgn_bench.shapes.library import packaged
     from kgn_bench.shapes.mesh_object import MeshObject
 
     config = ImportConfig(scale=args.scale, size=args.size, density=args.density, mass=args.mass,
                           color=tuple(args.color), hulls=args.hulls, seed=args.seed, verify=args.verify,
                           licence=args.licence)
     folder = import_mesh(args.mesh, args.name, config, root=args.root, overwrite=args.overwrite)
+    if packaged(args.name):
+        _warn(f"{args.name} now shadows the packaged object of that name in every task that names it "
+              "(remove the folder to undo)")
     m = MeshObject(folder).manifest
     g, t = m["grasps"], m["timing_s"]
     print(f"{m['name']}: {folder} ({m['faces']} faces, {m['hulls']} hulls, {m['mass'] * 1000:.0f} g, "
@@ -758,7 +767,7 @@ def _add_closed_loop(sub) -> None:
     replay.add_argument("--web", action="store_true",
                         help="serve the recording and rerun's web viewer on localhost (for a headless server: "
                              "open the printed URL, e.g. through SSH port forwarding); Ctrl-C stops it")
-    replay.add_argument("--port", type=_int_at_least(1), default=9090,
+    replay.add_argument("--port", type=_int_at_least(1, 65534), default=9090,
                         help="web viewer port (default 9090; the recording is served on the next port)")
     replay.set_defaults(func=_cmd_replay)
 

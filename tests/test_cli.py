@@ -25,12 +25,17 @@ CI_TASK = str(Path(__file__).resolve().parents[1] / "tasks" / "ci_oracle.toml")
         (["run", CI_TASK, "--detector", "oracle", "--set", "camera.depth_noise=-2"], "depth_noise must be in"),
         (["sweep", CI_TASK, "--detector", "oracle", "--param", "camera.fov", "--values", "1"], "unknown setting"),
         (["experiment", "table1", "--multi", "/nonexistent", "--single", "/nonexistent"], "no complete"),
+        (["replay", "run", "--web", "--port", "65535"], "--port: must be ≤ 65534"),
+        (["replay", "GARBAGE"], "is not a rerun recording"),
     ],
 )
 def test_bad_arguments_give_one_line_and_exit_2(argv, fragment, capsys, tmp_path):
     if argv[:2] == ["data", "show"]:
         argv = [a if a != "/nonexistent" else str(tmp_path / "missing") for a in argv]
         fragment = "scene.json"
+    if "GARBAGE" in argv:  # bytes that are not a recording are refused, not served
+        (tmp_path / "bad.rrd").write_bytes(bytes(range(200)))
+        argv = [a if a != "GARBAGE" else str(tmp_path / "bad.rrd") for a in argv]
     with pytest.raises(SystemExit) as e:
         rc = main(argv)
         raise SystemExit(rc)

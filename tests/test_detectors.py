@@ -111,6 +111,12 @@ def test_registry():
     assert isinstance(many, RandomDetector) and many.count == 64 and many.name == "random64" and rand.count == 1
 
 
+@pytest.mark.parametrize("name", sorted(DETECTORS))
+def test_every_registered_detector_builds_from_what_ships(name):
+    detector = make_detector(name)
+    assert isinstance(detector, Detector) and detector.name == name
+
+
 def test_oracle_needs_the_simulator(cell):
     _, obs = cell
     with pytest.raises(DetectorError, match="attach"):

@@ -119,6 +119,10 @@ def test_names_are_checked(tmp_path, object_library):
         import_mesh(path, "block\n", FAST, root=tmp_path / "lib")  # a trailing newline is no name
     with pytest.raises(ObjectError, match="already exists"):
         import_mesh(path, "test_block", FAST, root=object_library)
+    with pytest.raises(ObjectError, match="an object set's name"):
+        import_mesh(path, "pybullet_test", FAST, root=tmp_path / "lib")
+    with pytest.raises(ObjectError, match="belongs to a packaged set .* pass --overwrite to shadow it"):
+        import_mesh(path, "pb_mug", FAST, root=tmp_path / "lib")
 
 
 def test_decomposition_is_cached(tmp_path):

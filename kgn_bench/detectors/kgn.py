@@ -5,7 +5,8 @@
 ``model.decode.decode`` (top-k peaks, orientation filter, IPPE PnP, translation per variant) with the
 observed depth for ``kgn_depth`` and for depth-anchored scale heads. Candidates are in the camera frame.
 
-Weights: a name looks up ``assets/weights/<name>.pt`` (``kgn_depth`` uses ``kgn``'s); a path loads that file.
+Weights: a name looks up ``assets/weights/<name>.pt`` (``kgn_depth`` uses ``kgn``'s, ``kgnv2_sbranch`` the
+single-split ``kgnv2_sbranch_single``, ``SHIPPED_AS``); a path loads that file.
 """
 
 from __future__ import annotations
@@ -30,14 +31,21 @@ WEIGHTS_DIR = weights_dir()
 """The shipped weights (``kgn_bench.resources.weights_dir``)."""
 
 
+SHIPPED_AS = {"kgnv2_sbranch": "kgnv2_sbranch_single"}
+"""Variants whose one shipped model has another name: the scale-branch KGNv2 of the paper's ablation is
+trained on the single-object split only."""
+
+
 def weights_path(variant_name: str | None, weights: str | Path | None = None) -> Path:
     """The weights file for ``variant_name``: ``weights`` if it is a path to a file, else the shipped
     ``<weights>.pt``, else the shipped weights of the variant's training variant (``kgnv2`` when neither
     is given)."""
     if weights is not None and (Path(weights).suffix == ".pt" or Path(weights).is_file()):
         return Path(weights)
-    name = str(weights) if weights is not None else get_variant(variant_name or "kgnv2").weights_variant
-    return WEIGHTS_DIR / f"{name}.pt"
+    if weights is not None:
+        return WEIGHTS_DIR / f"{weights}.pt"
+    name = get_variant(variant_name or "kgnv2").weights_variant
+    return WEIGHTS_DIR / f"{SHIPPED_AS.get(name, name)}.pt"
 
 
 class KGNDetector:

@@ -38,7 +38,7 @@ import trimesh
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes import OBJECTS
 from kgn_bench.shapes.grasp_sampling import SamplingConfig, diverse_subset, sample_antipodal_grasps
-from kgn_bench.shapes.library import NAME_PATTERN, user_root
+from kgn_bench.shapes.library import NAME_PATTERN, OBJECT_SETS, packaged, user_root
 from kgn_bench.shapes.mesh_object import MANIFEST, MANIFEST_VERSION, MeshObject, ObjectError
 
 __all__ = ["MAX_EXTENT", "MIN_EXTENT", "MIN_GRASPS", "ImportConfig", "import_mesh", "repair_mesh"]
@@ -253,6 +253,12 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
         raise ObjectError(f"object name {name!r}: use lower-case letters, digits, '_' and '-' (≤ 63 characters)")
     if name in OBJECTS:
         raise ObjectError(f"object name {name!r} is a built-in object type; choose another")
+    if name in OBJECT_SETS:
+        raise ObjectError(f"object name {name!r} is an object set's name, which tasks could never reach; choose "
+                          "another")
+    if packaged(name) and not overwrite:
+        raise ObjectError(f"object name {name!r} belongs to a packaged set (pybullet_test/pybullet_train); pass "
+                          "--overwrite to shadow it in every task that names it")
     root = Path(root) if root is not None else user_root()
     target = root / name
     if (target / MANIFEST).exists() and not overwrite:
