@@ -136,3 +136,19 @@ def test_every_failed_attempt_of_a_run_is_explained_and_counted(session_run, tmp
     assert f"{len(failed)} of {study.attempts} attempts failed" in capsys.readouterr().out
     data = json.loads((tmp_path / "failures.json").read_text())
     assert data["counts"] == study.counts() and len(data["failures"]) == len(study.explanations)
+
+
+def test_an_unfinished_run_is_read_without_writing_and_its_coverage_said(session_run, tmp_path, capsys):
+    src = session_run("ci_regression", "oracle")
+    run = tmp_path / "cut"
+    run.mkdir()
+    (run / "run.json").write_text((src / "run.json").read_text())
+    clean = next(line for line in (src / "trials.jsonl").read_text().splitlines()
+                 if all(a["success"] for a in json.loads(line)["attempts"]))
+    text = clean + "\n" + '{"index": 7, "attem'  # a run killed while writing its second record
+    (run / "trials.jsonl").write_text(text)
+    assert main(["eval", "failures", str(run), "--quiet", "--out", str(tmp_path / "x")]) == 0
+    assert "this covers the 1 of its 24 trials that have a record" in capsys.readouterr().out
+    assert (run / "trials.jsonl").read_text() == text  # a reader does not repair another process's file
+    data = json.loads((tmp_path / "x" / "failures.json").read_text())
+    assert (data["trials"], data["planned_trials"]) == (1, 24)

@@ -143,8 +143,9 @@ def _identity_change(existing: dict[str, Any], identity: dict[str, Any]) -> str 
     return f"different {', '.join(dict.fromkeys(diff))}"
 
 
-def read_trials(path: Path) -> list[dict[str, Any]]:
-    """Finished trial records of ``trials.jsonl``; a cut-short last line (from a kill) is removed from the file."""
+def read_trials(path: Path, repair: bool = True) -> list[dict[str, Any]]:
+    """Finished trial records of ``trials.jsonl``; a cut-short last line (from a kill) is skipped, and with
+    ``repair`` (only for the run's writer, which holds its lock) removed from the file."""
     if not path.is_file():
         return []
     text = path.read_text()
@@ -159,7 +160,7 @@ def read_trials(path: Path) -> list[dict[str, Any]]:
         except json.JSONDecodeError:
             if n != len(lines) - 1:
                 raise RunError(f"{path}: line {n + 1} is not valid JSON") from None
-    if len(good) != len(lines):
+    if repair and len(good) != len(lines):
         atomic_write_text(path, "".join(good))
     seen: set[int] = set()
     unique = []

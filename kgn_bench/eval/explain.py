@@ -210,7 +210,8 @@ def _open_run(run: str | Path, detector: str | None = None) -> _Run:
     except ConfigError as e:
         raise ExplainError(str(e)) from None
     name = _trusted_detector(run, identity["detector"], detector)
-    records = {r["index"]: r for r in read_trials(run / "trials.jsonl") if isinstance(r.get("index"), int)}
+    records = {r["index"]: r for r in read_trials(run / "trials.jsonl", repair=False)  # a reader: never writes
+               if isinstance(r.get("index"), int)}
     detector = build_detector(name)
     changed = run_identity(task, name).get("weights_sha256") != identity.get("weights_sha256")
     return _Run(run, task, name, detector, changed, records)
@@ -327,6 +328,10 @@ class FailureStudy:
     attempts: int
     explanations: list[TrialExplanation]
     faults: list[dict[str, Any]]
+    trials: int = 0
+    """Trials with a record (the run's finished ones)."""
+    planned: int = 0
+    """Trials the run has in all; more than ``trials`` for an unfinished run."""
 
     def counts(self) -> dict[str, int]:
         out = dict.fromkeys(CATEGORIES, 0)
@@ -360,7 +365,8 @@ def explain_failures(run: str | Path, top: int = TOP, progress: bool = True,
         explanations.append(_explain(r, index, k, top, draw=False))
         bar.update()
     bar.close()
-    return FailureStudy(str(r.path), r.detector_name, r.task.name, total, explanations, faults)
+    return FailureStudy(str(r.path), r.detector_name, r.task.name, total, explanations, faults,
+                        trials=len(r.records), planned=r.task.n_trials)
 
 
 def _row(label: str, e: GraspError | None) -> str:
@@ -437,6 +443,9 @@ def failures_markdown(study: FailureStudy) -> str:
              "re-created and its chosen candidate measured against the true grasps (`kgn-bench eval trial`); "
              "the category is the first rule that holds (`kgn_bench.eval.explain.category`).", "",
              "| category | failed attempts |", "|---|---:|"]
+    if study.planned > study.trials:
+        lines[2:2] = [f"The run is unfinished: this covers the {study.trials} of its {study.planned} trials that "
+                      "have a record.", ""]
     lines += [f"| {_CATEGORY_TEXT[k]} | {v} |" for k, v in study.counts().items()]
     differ = sum(not x.same_as_recorded for x in study.explanations)
     if differ:
@@ -458,7 +467,7 @@ def write_failures(study: FailureStudy, out: str | Path) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     data = {"run": study.run, "task": study.task, "detector": study.detector, "attempts": study.attempts,
-            "counts": study.counts(),
+            "trials": study.trials, "planned_trials": study.planned, "counts": study.counts(),
             "failures": [{**x.to_dict(), "category": category(x)} for x in study.explanations],
             "faults": study.faults}
     paths = [out / "failures.json", out / "failures.md"]
