@@ -121,7 +121,7 @@ def test_names_are_checked(tmp_path, object_library):
         import_mesh(path, "test_block", FAST, root=object_library)
     with pytest.raises(ObjectError, match="an object set's name"):
         import_mesh(path, "pybullet_test", FAST, root=tmp_path / "lib")
-    with pytest.raises(ObjectError, match="belongs to a packaged set .* pass --overwrite to shadow it"):
+    with pytest.raises(ObjectError, match=r"belongs to a packaged set .* pass --overwrite to shadow it"):
         import_mesh(path, "pb_mug", FAST, root=tmp_path / "lib")
 
 
