@@ -82,19 +82,36 @@ def _first_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {text.splitlines()[0]}" if text else type(e).__name__
 
 
+_HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+"""HTTP/2's client connection preface followed by an empty SETTINGS frame: what a gRPC client sends first."""
+
+
 def _check_reachable(address: str, timeout: float = 5.0) -> None:
-    """A ``host:port`` address must accept a TCP connection (Ray itself would retry for a minute or more)."""
+    """A ``host:port`` address must accept a TCP connection and answer as a gRPC server does, with an HTTP/2
+    SETTINGS frame (Ray's GCS and client server speak gRPC); Ray itself would retry for minutes against a port
+    where nothing, or something else, listens."""
     host, sep, port = address.rpartition(":")
     if address.startswith("ray://"):
         host, sep, port = address[len("ray://"):].rpartition(":")
     if not sep or not port.isdigit():
         return  # "auto" or another form Ray resolves itself
     try:
-        with socket.create_connection((host, int(port)), timeout=timeout):
-            pass
+        with socket.create_connection((host, int(port)), timeout=timeout) as sock:
+            sock.sendall(_HTTP2_PREFACE)
+            reply = b""
+            while len(reply) < 9:
+                chunk = sock.recv(9 - len(reply))
+                if not chunk:
+                    break
+                reply += chunk
+    except TimeoutError:
+        reply = b""
     except OSError as e:
         raise ClusterError(f"the Ray cluster at {address} cannot be reached ({e.strerror or type(e).__name__}); "
                            "start it with `ray start --head` or pass another --address") from None
+    if len(reply) < 9 or reply[3] != 0x04:  # frame type 4: SETTINGS
+        raise ClusterError(f"{address} answers, but not as a Ray head (no gRPC reply); pass the head's address "
+                           "(`ray start --head` prints it)")
 
 
 _STATE: dict[str, Any] = {}  # in a Ray worker process: the initializer key it ran

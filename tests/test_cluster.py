@@ -201,6 +201,33 @@ def test_an_unreachable_cluster_is_one_line_and_writes_nothing(tmp_path, capsys)
     assert capsys.readouterr().err.strip() == "kgn-bench: error: --address and --num-gpus need --backend ray"
 
 
+@pytest.mark.parametrize("reply", [b"HTTP/1.0 400 Bad Request\r\n\r\n", None])
+def test_a_port_where_something_else_listens_fails_in_seconds(reply, tmp_path, capsys):
+    """An HTTP server, or a server that accepts and stays silent, is not a Ray head: one line, not a hang."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    address = f"127.0.0.1:{server.getsockname()[1]}"
+    held = []
+
+    def serve():
+        conn, _ = server.accept()
+        held.append(conn)
+        if reply is not None:
+            conn.recv(1024)
+            conn.sendall(reply)
+
+    threading.Thread(target=serve, daemon=True).start()
+    start = time.monotonic()
+    argv = ["run", str(TASKS / "ci_oracle.toml"), "--detector", "oracle", "--out", str(tmp_path / "run")]
+    assert main([*argv, "--backend", "ray", "--address", address, "--quiet"]) == 2
+    assert time.monotonic() - start < 20
+    assert capsys.readouterr().err.strip() == (f"kgn-bench: error: {address} answers, but not as a Ray head (no gRPC "
+                                               "reply); pass the head's address (`ray start --head` prints it)")
+    assert not list(tmp_path.iterdir())
+    server.close()
+
+
 def test_workers_that_lack_the_detectors_module_are_one_line_and_nothing_is_written(tmp_path, monkeypatch, capsys):
     """The module is importable here (on this process's sys.path) but not on the Ray workers."""
     (tmp_path / "here_only").mkdir()
