@@ -523,15 +523,24 @@ def _cmd_objects_add(args) -> int:
 def _cmd_objects_list(args) -> int:
     from kgn_bench.shapes import OBJECTS
     from kgn_bench.shapes.library import library_roots, list_objects
-    from kgn_bench.shapes.mesh_object import MeshObject
+    from kgn_bench.shapes.mesh_object import MeshObject, ObjectError, check_object
 
     print("built-in: " + ", ".join(OBJECTS))
     found = list_objects()
     print(f"imported ({len(found)}; searched {', '.join(map(str, library_roots()))}):")
+    broken = 0
     for name, folder in found.items():
-        m = MeshObject(folder).manifest
-        ext = " x ".join(f"{e * 100:.1f}" for e in m["extents_m"])
-        print(f"  {name:<16} {ext} cm  {m['mass'] * 1000:6.0f} g  {m['grasps']['held']:4d} grasps  {folder}")
+        try:
+            check_object(folder)
+            m = MeshObject(folder).manifest
+            ext = " x ".join(f"{e * 100:.1f}" for e in m["extents_m"])
+            print(f"  {name:<16} {ext} cm  {m['mass'] * 1000:6.0f} g  {m['grasps']['held']:4d} grasps  {folder}")
+        except (ObjectError, KeyError, TypeError) as e:  # one bad entry is marked, the others are listed
+            broken += 1
+            reason = str(e).splitlines()[0] if isinstance(e, ObjectError) else f"manifest lacks {e}"
+            print(f"  {name:<16} BROKEN: {reason}")
+    if broken:
+        _warn(f"{broken} imported object(s) are broken; import them again (kgn-bench objects add … --overwrite)")
     return 0
 
 

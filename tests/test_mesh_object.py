@@ -54,3 +54,49 @@ def test_broken_folders(tmp_path, object_library):
         _ = MeshObject(bad).verified_grasps
     with pytest.raises(ObjectError, match="not an object folder"):
         MeshObject(tmp_path)
+
+
+def _damaged_library(tmp_path, object_library, damage):
+    """A library holding a copy of test_block, damaged by ``damage(folder)``."""
+    lib = tmp_path / "lib"
+    shutil.copytree(object_library / "test_block", lib / "test_block")
+    damage(lib / "test_block")
+    return lib
+
+
+@pytest.mark.parametrize("damage, fragment", [
+    (lambda f: (f / "grasps.npz").write_bytes((f / "grasps.npz").read_bytes()[:200]), "grasps.npz: its SHA-256"),
+    (lambda f: (f / "collision" / "hull_00.ply").unlink(), "hulls, its manifest records"),
+    (lambda f: (f / "visual.ply").write_bytes((f / "visual.ply").read_bytes() + b"\n"), "visual.ply: its SHA-256"),
+])  # fmt: skip
+def test_a_damaged_library_is_one_line_before_any_trial(damage, fragment, tmp_path, object_library, monkeypatch,
+                                                        capsys):
+    from kgn_bench.cli import main
+    from kgn_bench.shapes.mesh_object import check_object
+
+    lib = _damaged_library(tmp_path, object_library, damage)
+    with pytest.raises(ObjectError, match=fragment.replace("(", r"\(")):
+        check_object(lib / "test_block")
+    monkeypatch.setenv("KGN_BENCH_OBJECTS", str(lib))
+    task = tmp_path / "t.toml"
+    task.write_text('[task]\nname = "b"\nprotocol = "single_object"\ntrials = 1\n[objects]\nset = ["test_block"]\n')
+    out = tmp_path / "run"
+    assert main(["run", str(task), "--detector", "oracle", "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "test_block" in err and fragment in err
+    assert not (out / "trials.jsonl").exists()  # not blamed on the detector as an outcome
+    assert main(["objects", "list"]) == 0  # the broken entry is marked, the list goes on
+    listed = capsys.readouterr()
+    assert "test_block       BROKEN:" in listed.out and "1 imported object(s) are broken" in listed.err
+
+
+def test_a_truncated_grasps_file_without_recorded_hashes_is_still_an_object_error(tmp_path, object_library):
+    def damage(folder):
+        manifest = json.loads((folder / "object.json").read_text())
+        del manifest["files_sha256"]  # as imported before hashes were recorded
+        (folder / "object.json").write_text(json.dumps(manifest))
+        (folder / "grasps.npz").write_bytes((folder / "grasps.npz").read_bytes()[:200])
+
+    lib = _damaged_library(tmp_path, object_library, damage)
+    with pytest.raises(ObjectError, match=r"grasps.npz: unreadable grasps \(BadZipFile"):
+        MeshObject(lib / "test_block").verified_grasps

@@ -43,6 +43,8 @@ from kgn_bench.io import atomic_write_text, describe_os_error
 from kgn_bench.objects.pybullet_set import ensure_objects
 from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
+from kgn_bench.shapes.library import find_object
+from kgn_bench.shapes.mesh_object import check_object
 from kgn_bench.threads import pin_worker_threads, trial_threads
 
 from .stats import Rate, summarise, summary_markdown
@@ -365,10 +367,14 @@ class _RunWriter:
 def _check_runs(runs: list[tuple[TaskConfig, str]], workers: int, progress: bool) -> dict[str, Any]:
     """Every check made before anything is written, for runs of (task, detector): each detector builds (an
     unknown name, a constructor that raises or weights that do not load stop here, in one line), each task's
-    packaged objects are imported, each camera sees the workspace. Returns the built detectors by name."""
+    packaged objects are imported, each imported object's folder is intact (``check_object``), each camera
+    sees the workspace. Returns the built detectors by name."""
     built = {detector: build_detector(detector) for detector in dict.fromkeys(d for _, d in runs)}
     for task in {t.name: t for t, _ in runs}.values():
         ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
+        for name in dict.fromkeys(task.objects):  # a damaged library is an error here, not an outcome later
+            if (folder := find_object(name)) is not None:
+                check_object(folder)
         check_cameras(task)
     return built
 

@@ -39,7 +39,7 @@ from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes import OBJECTS
 from kgn_bench.shapes.grasp_sampling import SamplingConfig, diverse_subset, sample_antipodal_grasps
 from kgn_bench.shapes.library import NAME_PATTERN, OBJECT_SETS, packaged, user_root
-from kgn_bench.shapes.mesh_object import MANIFEST, MANIFEST_VERSION, MeshObject, ObjectError
+from kgn_bench.shapes.mesh_object import MANIFEST, MANIFEST_VERSION, MeshObject, ObjectError, content_hashes
 
 __all__ = ["MAX_EXTENT", "MIN_EXTENT", "MIN_GRASPS", "ImportConfig", "import_mesh", "repair_mesh"]
 
@@ -331,6 +331,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
             timing["preview"] = time.perf_counter() - t1
         timing["total"] = time.perf_counter() - t0
         manifest["timing_s"] = {k: round(v, 3) for k, v in timing.items()}
+        manifest["files_sha256"] = content_hashes(tmp)
         _write_manifest(tmp, manifest)
         if target.exists():
             shutil.rmtree(target)

@@ -3,7 +3,8 @@
 An object folder (written by ``kgn_bench.objects.importer``) holds:
 
 - ``object.json``: the manifest (name, source file and its SHA-256, scale, mass, colour, the rest poses, how
-  the collision shape and the grasps were made, and the licence of the source);
+  the collision shape and the grasps were made, the licence of the source, and the SHA-256 of every content
+  file, ``files_sha256``, which ``check_object`` verifies);
 - ``visual.ply``: the visual mesh in the object frame, as imported (scaled, repaired, not simplified);
 - ``collision/hull_KK.ply``: the convex pieces of the collision shape (CoACD);
 - ``grasps.npz``: the physics-verified grasps in the object frame (``poses`` (N, 4, 4), ``widths`` (N,));
@@ -16,6 +17,7 @@ them exactly as they use the primitives' closed-form families (``Shape.grasps``)
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass
 from functools import cached_property
@@ -28,7 +30,8 @@ from kgn_bench.errors import KGNBenchError
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes.base import GeomSpec, GraspDensity, RestPose, Shape
 
-__all__ = ["MANIFEST", "MANIFEST_VERSION", "MeshObject", "ObjectError"]
+__all__ = ["CONTENT_FILES", "MANIFEST", "MANIFEST_VERSION", "MeshObject", "ObjectError", "check_object",
+           "content_hashes"]
 
 MANIFEST = "object.json"
 MANIFEST_VERSION = 1
@@ -59,6 +62,39 @@ def _load_ply(path: Path) -> trimesh.Trimesh:
     if len(mesh.faces) == 0 or not np.all(np.isfinite(mesh.vertices)):
         raise ObjectError(f"{path}: empty or non-finite mesh")
     return mesh
+
+
+CONTENT_FILES = ("visual.ply", "grasps.npz", "collision/hull_*.ply")
+"""The files whose SHA-256 the manifest records (``files_sha256``) and ``check_object`` verifies."""
+
+
+def content_hashes(folder: Path) -> dict[str, str]:
+    """SHA-256 of each content file of an object folder (``CONTENT_FILES``), by relative path."""
+    files = sorted(p for pattern in CONTENT_FILES for p in Path(folder).glob(pattern))
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
+
+
+def check_object(folder: Path) -> None:
+    """Verify an object folder before it is used: a readable manifest, as many collision hulls as it records,
+    every file with the SHA-256 it records (objects imported before hashes were recorded skip that), and
+    readable grasps. ``ObjectError`` names the object and the file: a damaged library is an error, not a
+    trial outcome."""
+    folder = Path(folder)
+    manifest = _read_manifest(folder)
+    hulls = sorted((folder / "collision").glob("hull_*.ply"))
+    if len(hulls) != manifest.get("hulls", len(hulls)):
+        raise ObjectError(f"{folder}: collision/ holds {len(hulls)} hulls, its manifest records {manifest['hulls']} "
+                          "(a damaged object folder: import it again)")
+    recorded = manifest.get("files_sha256")
+    if recorded is not None:
+        found = content_hashes(folder)
+        for rel in sorted(set(recorded) | set(found)):
+            if rel not in found:
+                raise ObjectError(f"{folder / rel}: missing (a damaged object folder: import it again)")
+            if found[rel] != recorded.get(rel):
+                raise ObjectError(f"{folder / rel}: its SHA-256 differs from the manifest's (a damaged or edited "
+                                  "object folder: import it again)")
+    MeshObject(folder).verified_grasps  # noqa: B018  (reads grasps.npz: a truncated file fails here)
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,6 +154,9 @@ class MeshObject(Shape):
         paths = sorted((self.folder / "collision").glob("hull_*.ply"))
         if not paths:
             raise ObjectError(f"{self.folder}: no collision hulls in collision/")
+        if len(paths) != self.manifest.get("hulls", len(paths)):
+            raise ObjectError(f"{self.folder}: collision/ holds {len(paths)} hulls, its manifest records "
+                              f"{self.manifest['hulls']} (a damaged object folder: import it again)")
         return [_load_ply(p) for p in paths]
 
     def collision_geoms(self) -> list[GeomSpec]:
@@ -150,8 +189,8 @@ class MeshObject(Shape):
         try:
             with np.load(path) as z:
                 poses, widths = np.asarray(z["poses"], dtype=float), np.asarray(z["widths"], dtype=float)
-        except (OSError, KeyError, ValueError) as e:
-            raise ObjectError(f"{path}: unreadable grasps ({e})") from None
+        except Exception as e:  # OSError, KeyError, ValueError, zipfile.BadZipFile, EOFError: a damaged file
+            raise ObjectError(f"{path}: unreadable grasps ({type(e).__name__}: {e})") from None
         return GraspSet.unlabelled(poses, widths)
 
     def grasps(self, density: GraspDensity) -> GraspSet:
