@@ -99,4 +99,4 @@ def test_a_truncated_grasps_file_without_recorded_hashes_is_still_an_object_erro
 
     lib = _damaged_library(tmp_path, object_library, damage)
     with pytest.raises(ObjectError, match=r"grasps.npz: unreadable grasps \(BadZipFile"):
-        MeshObject(lib / "test_block").verified_grasps
+        _ = MeshObject(lib / "test_block").verified_grasps
