@@ -147,3 +147,34 @@ def test_decomposition_errors_come_back_from_the_child():
     assert len(decompose(box.vertices, box.faces, {"max_convex_hull": 1})) >= 1
     with pytest.raises(CoACDCrash, match="CoACD failed"):
         decompose(box.vertices, box.faces, {"no_such_setting": 1})
+
+
+def test_archives_are_refused_before_they_are_unpacked(tmp_path):
+    import zipfile
+
+    bomb = tmp_path / "mesh.zip"
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("a.obj", "v 0 0 0\n" * 1_000_000)  # small on disk, large unpacked
+    with pytest.raises(ObjectError, match="an archive; unpack it"):
+        import_mesh(bomb, "zipped", FAST, root=tmp_path / "lib")
+    disguised = tmp_path / "mesh.stl"
+    disguised.write_bytes(bomb.read_bytes())  # the bytes decide, not the name
+    with pytest.raises(ObjectError, match="an archive"):
+        import_mesh(disguised, "zipped", FAST, root=tmp_path / "lib")
+    big = tmp_path / "big.3mf"
+    with zipfile.ZipFile(big, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("3D/3dmodel.model", b"\0" * 300_000_000)
+    with pytest.raises(ObjectError, match="unpacks to 300 MB, more than 256 MB"):
+        import_mesh(big, "model3mf", FAST, root=tmp_path / "lib")
+    assert not (tmp_path / "lib").exists()
+
+
+def test_the_rest_pose_search_works_on_a_bounded_hull():
+    from kgn_bench.objects.importer import REST_HULL_FACES, _bounded_hull, _rest_poses
+
+    sphere = trimesh.creation.icosphere(subdivisions=6, radius=0.04)  # 40 962 hull vertices
+    assert len(sphere.convex_hull.faces) > REST_HULL_FACES >= len(_bounded_hull(sphere).faces)
+    box = trimesh.creation.box((0.04, 0.06, 0.10))
+    assert _bounded_hull(box).faces.shape == box.convex_hull.faces.shape  # small hulls are used as they are
+    poses = _rest_poses(box, 0)
+    assert len(poses) == 6 and sum(p["probability"] for p in poses) == pytest.approx(1.0)

@@ -29,6 +29,7 @@ import json
 import shutil
 import tempfile
 import time
+import zipfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -83,9 +84,29 @@ class ImportConfig:
             raise ObjectError(f"--hulls must be ≥ 1 and --verify ≥ {MIN_GRASPS}")
 
 
+MAX_UNPACKED = 256_000_000
+"""Largest unpacked size of a 3MF file (a zip) that is read."""
+ARCHIVE_MAGIC = (b"PK\x03\x04", b"\x1f\x8b", b"BZh", b"\xfd7zXZ", b"7z\xbc\xaf", b"Rar!")
+"""Leading bytes of zip, gzip, bzip2, xz, 7z and rar files: trimesh would unpack them in memory, without a
+bound on the size, so an archive is refused before it is read."""
+
+
 def _read(path: Path) -> trimesh.Trimesh:
     if not path.is_file():
         raise ObjectError(f"{path}: no such file")
+    with open(path, "rb") as f:
+        head = f.read(8)
+    if path.suffix.lower() == ".3mf":  # a mesh format that is a zip: read, with its unpacked size bounded
+        try:
+            with zipfile.ZipFile(path) as z:
+                unpacked = sum(i.file_size for i in z.infolist())
+        except zipfile.BadZipFile:
+            raise ObjectError(f"{path}: not a readable 3MF (zip) file") from None
+        if unpacked > MAX_UNPACKED:
+            raise ObjectError(f"{path}: unpacks to {unpacked / 1e6:.0f} MB, more than {MAX_UNPACKED / 1e6:.0f} MB")
+    elif head.startswith(ARCHIVE_MAGIC) or path.suffix.lower() in (".zip", ".gz", ".tgz", ".bz2", ".xz", ".7z",
+                                                                     ".tar"):
+        raise ObjectError(f"{path}: an archive; unpack it and import the mesh file inside (OBJ, STL, PLY, GLB, ...)")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many types on a bad file
@@ -223,13 +244,35 @@ def _decompose(mesh: trimesh.Trimesh, config: ImportConfig, cache: Path) -> list
     return hulls
 
 
+REST_HULL_FACES = 2000
+"""The rest-pose search works on the convex hull; a hull with more faces than this is rebuilt from
+``REST_HULL_VERTICES`` of its vertices, spread by farthest-point sampling, so the search's cost is bounded
+whatever the mesh (a 20 000-face sphere took 66 s before, a 199 000-face one 4.6 GB)."""
+REST_HULL_VERTICES = 600
+
+
+def _bounded_hull(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """The convex hull of ``mesh`` (what resting depends on), with at most about ``REST_HULL_FACES`` faces."""
+    hull = mesh.convex_hull
+    if len(hull.faces) <= REST_HULL_FACES:
+        return hull
+    points = np.asarray(hull.vertices)
+    chosen = [int(np.argmax(np.linalg.norm(points - points.mean(axis=0), axis=1)))]
+    dist = np.linalg.norm(points - points[chosen[0]], axis=1)
+    for _ in range(REST_HULL_VERTICES - 1):  # farthest-point sampling: deterministic, spread over the hull
+        chosen.append(int(np.argmax(dist)))
+        dist = np.minimum(dist, np.linalg.norm(points - points[chosen[-1]], axis=1))
+    return trimesh.Trimesh(points[chosen]).convex_hull
+
+
 def _rest_poses(mesh: trimesh.Trimesh, seed: int) -> list[dict]:
     """The likely resting orientations (probability ≥ 2 %, at most 8, renormalised) as rotations.
 
     Rotations and probabilities are rounded to 9 decimals: trimesh's stable-pose probabilities differ in their
     last bits between CPUs (measured: 0.25726290473703906 on one, ...894 on another), and the manifest must be
     the same wherever the object is imported."""
-    transforms, probs = trimesh.poses.compute_stable_poses(mesh, n_samples=1, threshold=0.0, sigma=0.0)
+    transforms, probs = trimesh.poses.compute_stable_poses(_bounded_hull(mesh), center_mass=mesh.center_mass,
+                                                           n_samples=1, threshold=0.0, sigma=0.0)
     order = np.argsort(-np.asarray(probs))
     keep = [i for i in order if probs[i] >= 0.02][:8] or [int(order[0])]
     total = float(sum(probs[i] for i in keep))
