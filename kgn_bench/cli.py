@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import errno
 import sys
+import time
 from pathlib import Path
 
 __all__ = ["main"]
@@ -509,7 +510,12 @@ def _cmd_objects_add(args) -> int:
     config = ImportConfig(scale=args.scale, size=args.size, density=args.density, mass=args.mass,
                           color=tuple(args.color), hulls=args.hulls, seed=args.seed, verify=args.verify,
                           licence=args.licence)
-    folder = import_mesh(args.mesh, args.name, config, root=args.root, overwrite=args.overwrite)
+    started = time.perf_counter()
+
+    def progress(stage: str) -> None:
+        sys.stderr.write(f"{args.name}: {stage} ({time.perf_counter() - started:.0f} s)\n")
+
+    folder = import_mesh(args.mesh, args.name, config, root=args.root, overwrite=args.overwrite, progress=progress)
     if packaged(args.name):
         _warn(f"{args.name} now shadows the packaged object of that name in every task that names it "
               "(remove the folder to undo)")

@@ -30,6 +30,7 @@ import shutil
 import tempfile
 import time
 import zipfile
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -285,9 +286,10 @@ def _write_manifest(folder: Path, manifest: dict) -> None:
 
 
 def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig(), root: Path | None = None,
-                overwrite: bool = False, preview: bool = True) -> Path:
+                overwrite: bool = False, preview: bool = True, progress: Callable[[str], None] | None = None) -> Path:
     """Import the mesh file ``path`` as object ``name`` into ``root`` (default the user's library); returns
-    the new object folder. The steps are in the module doc."""
+    the new object folder. The steps are in the module doc; ``progress`` is told each stage as it starts."""
+    say = progress or (lambda _: None)
     from kgn_bench.sim.grasp_verify import verify_grasps
 
     path = Path(path)
@@ -307,6 +309,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     if (target / MANIFEST).exists() and not overwrite:
         raise ObjectError(f"object {name!r} already exists in {root} (pass --overwrite to replace it)")
     source_bytes = path.read_bytes() if path.is_file() else b""
+    say("reading and repairing the mesh")
     mesh = repair_mesh(_read(path), str(path))
     t_repair = time.perf_counter() - t0
     scale = config.scale if config.scale is not None else (config.size / float(mesh.extents.max())
@@ -322,9 +325,11 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     mesh.apply_translation(-mesh.center_mass)
     rng = np.random.default_rng(config.seed)
     t1 = time.perf_counter()
+    say(f"decomposing {len(mesh.faces)} faces into convex pieces (CoACD)")
     hulls = _decompose(mesh, config, root / ".cache" / "coacd")
     t_decomp = time.perf_counter() - t1
     t1 = time.perf_counter()
+    say("sampling antipodal grasps")
     poses, widths = sample_antipodal_grasps(mesh, rng, config.sampling)
     t_sample = time.perf_counter() - t1
     if len(poses) == 0:
@@ -345,6 +350,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
         (tmp / "collision").mkdir()
         for k, hull in enumerate(hulls):
             hull.export(tmp / "collision" / f"hull_{k:02d}.ply")
+        say("finding the rest poses")
         manifest = {
             "version": MANIFEST_VERSION, "name": name, "source": path.name,
             "source_sha256": hashlib.sha256(source_bytes).hexdigest(), "licence": config.licence,
@@ -358,6 +364,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
         np.savez(tmp / "grasps.npz", poses=np.zeros((0, 4, 4)), widths=np.zeros(0))
         shape = MeshObject(tmp)
         t1 = time.perf_counter()
+        say(f"checking {len(poses)} grasps in physics")
         held = verify_grasps(shape, poses, widths)
         t_verify = time.perf_counter() - t1
         if held.sum() < MIN_GRASPS:
