@@ -309,8 +309,9 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     if (target / MANIFEST).exists() and not overwrite:
         raise ObjectError(f"object {name!r} already exists in {root} (pass --overwrite to replace it)")
     source_bytes = path.read_bytes() if path.is_file() else b""
-    say("reading and repairing the mesh")
-    mesh = repair_mesh(_read(path), str(path))
+    loaded = _read(path)
+    say(f"repairing {len(loaded.faces)} faces")
+    mesh = repair_mesh(loaded, str(path))
     t_repair = time.perf_counter() - t0
     scale = config.scale if config.scale is not None else (config.size / float(mesh.extents.max())
                                                            if config.size is not None else 1.0)
