@@ -299,19 +299,20 @@ def _cmd_replay(args) -> int:
     path = args.run / "recording.rrd" if args.run.is_dir() else args.run
     if not path.is_file():
         raise RecordingError(f"{path} not found: run with --record first")
+    for out, what in ((args.still, "still"), (args.save, "recording copy")):
+        if out:
+            _writable_file(out, what)  # before any work, as every command checks its outputs
     with open(path, "rb") as f:
         if f.read(3) != b"RRF":  # rerun's file magic (RRF2 today)
             raise RecordingError(f"{path} is not a rerun recording (.rrd)")
     if args.still:
         from kgn_bench.viz.still import save_still
 
-        _writable_file(args.still, "still")
         obs = save_still(path, args.still, trial=args.trial, attempt=args.attempt)
         print(f"wrote {args.still} (trial {args.trial}, attempt {args.attempt}, {len(obs.candidates) // 4} "
               f"candidates drawn)")
         return 0
     if args.save:
-        _writable_file(args.save, "recording copy")
         copy_recording(path, args.save)
         print(f"wrote {args.save}")
         return 0
