@@ -20,12 +20,13 @@ KGN_BENCH = str(Path(sys.executable).parent / "kgn-bench")
 
 
 def test_sigterm_and_sighup_raise_keyboard_interrupt_inside_the_block_only():
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
     for sig in (signal.SIGTERM, signal.SIGHUP):
         with pytest.raises(Stopped) as e, interrupts_as_keyboard():
             os.kill(os.getpid(), sig)
             time.sleep(1)
         assert e.value.signum == sig and isinstance(e.value, KeyboardInterrupt)
-    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    assert {sig: signal.getsignal(sig) for sig in before} == before  # the previous handlers are back
 
 
 def _wait_for(predicate, timeout: float, what: str) -> None:

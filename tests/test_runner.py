@@ -498,6 +498,8 @@ def test_a_resume_after_an_objects_files_changed_is_refused_naming_it(tmp_path, 
     would otherwise mix two meshes in one run."""
     import numpy as np
 
+    from kgn_bench.shapes.mesh_object import content_hashes
+
     task = tmp_path / "t.toml"
     task.write_text('[task]\nname = "blocks"\nprotocol = "single_object"\ntrials = 2\n'
                     '[objects]\nset = ["test_block"]\n')
@@ -511,13 +513,19 @@ def test_a_resume_after_an_objects_files_changed_is_refused_naming_it(tmp_path, 
     backup = tmp_path / "grasps.npz"
     shutil.copy(grasps, backup)
     try:
-        with np.load(grasps) as g:
+        with np.load(grasps) as g:  # as a re-import would leave it: other grasps, a manifest that records them
             np.savez(grasps, poses=g["poses"][:-1], widths=g["widths"][:-1])
+        manifest_path = object_library / "test_block" / "object.json"
+        manifest_backup = manifest_path.read_text()
+        manifest = json.loads(manifest_backup)
+        manifest["files_sha256"] = content_hashes(object_library / "test_block")
+        manifest_path.write_text(json.dumps(manifest))
         capsys.readouterr()
         assert main(argv) == 2
         assert "object test_block changed since the run started" in capsys.readouterr().err
     finally:
         shutil.copy(backup, grasps)
+        manifest_path.write_text(manifest_backup)
     assert main(argv) == 0
 
 

@@ -63,5 +63,8 @@ def test_cli_writes_a_png_and_names_a_missing_attempt_or_a_broken_file(pile_run,
     broken = tmp_path / "broken.rrd"
     broken.write_bytes(b"not a recording" * 10)
     assert main(["replay", str(broken), "--still", str(tmp_path / "y.png")]) != 0
+    assert "is not a rerun recording (.rrd)" in capsys.readouterr().err
+    broken.write_bytes((pile_run / "recording.rrd").read_bytes()[:100])  # a recording cut short
+    assert main(["replay", str(broken), "--still", str(tmp_path / "y.png")]) != 0
     assert "not a readable rerun recording" in capsys.readouterr().err
     assert not (tmp_path / "x.png").exists() and not (tmp_path / "y.png").exists()
