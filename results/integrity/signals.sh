@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A run with 2 workers stopped by SIGTERM, then by SIGKILL, and an import stopped by SIGTERM; 5 s later, `ps`
+# A run (12 single-object trials) with 2 workers stopped by SIGTERM, then by SIGKILL, and an import stopped by SIGTERM; 5 s later, `ps`
 # lists what is left of each (nothing should be). Run from the repository root with the venv:
 #   bash results/integrity/signals.sh > results/integrity/signals.md
 set -u
@@ -7,17 +7,17 @@ KB=${KB:-.venv/bin/kgn-bench}
 W=$(mktemp -d /tmp/kgn-signals.XXXX)
 trials() { [ -f "$1/trials.jsonl" ] && grep -c . "$1/trials.jsonl" || echo 0; }
 for sig in TERM KILL; do
-  $KB run single_object --detector kgnv2 --workers 2 --quiet --out $W/run_$sig > /dev/null 2>&1 &
+  $KB run single_object --detector kgnv2 --trials 2 --workers 2 --quiet --out $W/run_$sig > /dev/null 2>&1 &
   main=$!
   until [ "$(trials $W/run_$sig)" -ge 4 ]; do sleep 0.2; done
-  kids=$(pgrep -d, -P $main); tracker=$(pgrep -f "resource_tracker" | tr '\n' ',')
+  kids=$(pgrep -d, -P $main)  # the two workers and multiprocessing's resource tracker
   kill -$sig $main; wait $main; rc=$?
   sleep 5
   echo "## run, SIG$sig after $(trials $W/run_$sig) trials: exit $rc; children were $kids"
   echo '```'
-  ps -o pid,ppid,stat,etime,rss,cmd -p "${kids:-0},${tracker:-0},$main" | sed "s#$W#W#g"
+  ps -o pid,ppid,stat,etime,rss,cmd -p "$kids,$main" | sed "s#$W#W#g"
   echo '```'
-  $KB run single_object --detector kgnv2 --workers 2 --quiet --out $W/run_$sig > /dev/null 2>&1
+  $KB run single_object --detector kgnv2 --trials 2 --workers 2 --quiet --out $W/run_$sig > /dev/null 2>&1
   echo "rerun: exit $?, $(trials $W/run_$sig) trials"
   echo
 done
