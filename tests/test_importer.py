@@ -178,3 +178,15 @@ def test_the_rest_pose_search_works_on_a_bounded_hull():
     assert _bounded_hull(box).faces.shape == box.convex_hull.faces.shape  # small hulls are used as they are
     poses = _rest_poses(box, 0)
     assert len(poses) == 6 and sum(p["probability"] for p in poses) == pytest.approx(1.0)
+
+
+def test_a_huge_collision_hull_is_rebuilt_from_a_bounded_vertex_subset():
+    from kgn_bench.objects.importer import MAX_HULL_VERTICES, _bounded
+
+    sphere = trimesh.creation.icosphere(subdivisions=7, radius=0.05).convex_hull  # 163 842 vertices
+    small = _bounded(sphere, MAX_HULL_VERTICES)
+    assert len(small.vertices) == MAX_HULL_VERTICES and small.is_convex
+    assert small.volume == pytest.approx(sphere.volume, rel=0.005)
+    assert np.array_equal(small.vertices, _bounded(sphere, MAX_HULL_VERTICES).vertices)  # the same every time
+    box = trimesh.creation.box((0.04, 0.06, 0.10))
+    assert _bounded(box, MAX_HULL_VERTICES) is box
