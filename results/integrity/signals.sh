@@ -35,3 +35,30 @@ ps -o pid,ppid,stat,etime,rss,cmd -p "${kids:-0},$main" | sed "s#$W#W#g"
 echo '```'
 echo "library folder after: $(ls -A $W/lib 2>/dev/null | tr '\n' ' ')"
 rm -rf "$W"
+
+# A benchmark (one pool for a plan) stopped by SIGTERM, and an import killed with SIGKILL during CoACD.
+W=$(mktemp -d /tmp/kgn-signals.XXXX)
+$KB benchmark --tasks single_object multi_object --detectors oracle --workers 2 --no-viewpoints --runs $W/bm \
+  --out $W/bm > /dev/null 2>&1 &
+main=$!
+until [ "$(cat $W/bm/*/oracle/trials.jsonl 2>/dev/null | grep -c .)" -ge 4 ]; do sleep 0.2; done
+kids=$(pgrep -d, -P $main)
+kill -TERM $main; wait $main; rc=$?
+sleep 5
+echo "## benchmark, SIGTERM: exit $rc; children were $kids"
+echo '```'
+ps -o pid,ppid,stat,etime,rss,cmd -p "$kids,$main" | sed "s#$W#W#g"
+echo '```'
+.venv/bin/python -c "import trimesh; trimesh.creation.torus(0.05, 0.015, major_sections=300, minor_sections=60).export('$W/torus.ply')"
+$KB objects add $W/torus.ply --name torus_x --root $W/lib > /dev/null 2>&1 &
+main=$!
+until pgrep -P $main > /dev/null; do sleep 0.1; done
+sleep 1
+kids=$(pgrep -d, -P $main)
+kill -KILL $main; wait $main; rc=$?
+sleep 5
+echo "## objects add, SIGKILL during CoACD: exit $rc; children were $kids"
+echo '```'
+ps -o pid,ppid,stat,etime,rss,cmd -p "$kids,$main" | sed "s#$W#W#g"
+echo '```'
+rm -rf "$W"
