@@ -122,10 +122,10 @@ def _write_bundle(folder: Path, detector: str, items: list[tuple[Path, Any]]) ->
     (folder / "tasks").mkdir()
     (folder / "attempts").mkdir()
     entries = []
-    for run_folder, run in sorted(items, key=lambda item: item[1].summary["task"]):
+    for _, run in sorted(items, key=lambda item: item[1].summary["task"]):
         task = run.summary["task"]
         config = run.run.get("config", {})
-        records = [json.loads(line) for line in (run_folder / "trials.jsonl").read_text().splitlines()]
+        records = run.records
         atomic_write_text(folder / "tasks" / f"{_safe(task)}.json", json.dumps(config, indent=2) + "\n")
         atomic_write_text(folder / "attempts" / f"{_safe(task)}.csv", _attempt_rows(records))
         entries.append({

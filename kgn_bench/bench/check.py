@@ -95,10 +95,12 @@ def _read_records(path: Path) -> list[dict[str, Any]]:
 
 @dataclass(frozen=True)
 class RunFiles:
-    """What the check reads of a run folder: its summary, its ``run.json`` and its fingerprint."""
+    """What the check reads of a run folder: its summary, its ``run.json``, its trial records and their
+    fingerprint."""
 
     summary: dict[str, Any]
     run: dict[str, Any]
+    records: list[dict[str, Any]]
     fingerprint: Fingerprint
 
 
@@ -112,7 +114,7 @@ def read_run(folder: Path) -> RunFiles:
     records = _read_records(folder / "trials.jsonl")
     if isinstance(run.get("trials"), int) and len(records) < run["trials"]:
         raise CheckError(f"{folder} is not finished ({len(records)} of {run['trials']} trials): rerun it to resume")
-    return RunFiles(summary, run, fingerprint(run, records))
+    return RunFiles(summary, run, records, fingerprint(run, records))
 
 
 def validate_baseline(document: Any, path: Path | str) -> dict[str, Any]:
