@@ -5,7 +5,7 @@ VENV   ?= .venv
 BIN     = $(VENV)/bin
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo benchmark test regression ci-baselines perf wheel-check lock clean
+.PHONY: setup demo benchmark test regression ci-baselines perf wheel-check lock clean docs
 
 $(BIN)/kgn-bench: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -67,6 +67,15 @@ lock:
 	  | sed 's/^torch==2.13.0+cpu$$/torch==2.13.0/'; } > constraints.txt.new
 	mv constraints.txt.new constraints.txt
 	rm -rf .lock-venv
+
+# The documentation site (mkdocs.yml, docs/) into site/, strict: a broken link, a missing page or a docstring
+# mkdocstrings cannot render fails the build. Installs the docs extra from the lock file the first time.
+$(VENV)/.docs-installed: $(BIN)/kgn-bench pyproject.toml constraints.txt
+	$(BIN)/pip install -c constraints.txt -e '.[docs]'
+	touch $@
+
+docs: $(VENV)/.docs-installed
+	$(BIN)/mkdocs build --strict --site-dir site
 
 perf: setup
 	$(BIN)/kgn-bench perf data --scenes 40 --workers 2
