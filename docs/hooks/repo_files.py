@@ -13,8 +13,6 @@ import posixpath
 import re
 from pathlib import Path
 
-from mkdocs.structure.files import File
-
 SERVED_DIRS = ("results",)
 SERVED_FILES = ("CHANGELOG.md",)
 SUFFIXES = {".md", ".png", ".json", ".csv", ".html"}
@@ -35,6 +33,8 @@ def _served(root: Path) -> list[str]:
 
 
 def on_files(files, config):
+    from mkdocs.structure.files import File  # here, so that rewrite_links is usable (and tested) without mkdocs
+
     root = _root(config)
     for path in _served(root):
         files.append(File(path, src_dir=str(root), dest_dir=config.site_dir,

@@ -16,6 +16,7 @@ import inspect
 import itertools
 import re
 import textwrap
+import typing
 
 from kgn_bench import config
 
@@ -98,6 +99,9 @@ def meaning(cls: type, name: str) -> str:
     else:
         mentioned = [s for s in _sentences(inspect.getdoc(cls) or "") if f"``{name}``" in s]
         text = " ".join([NOTES.get((cls.__name__, name), ""), *mentioned]).strip()
+    if not text and cls is config.TaskConfig and name in NESTED:
+        section = typing.get_type_hints(cls)[name]
+        text = (" ".join((inspect.getdoc(section) or "").split()).split(". ")[0] + ".").replace("``", "`")
     allowed = ALLOWED.get((cls.__name__, name))
     if allowed:
         text = f"{text} One of: {', '.join(f'``{v}``' for v in allowed)}.".strip()
