@@ -116,3 +116,28 @@ def test_links_out_of_docs_are_rewritten_to_the_served_copies():
     assert "[c](CHANGELOG.md)" in top and "[p](protocols.md)" in top and "[x](../tasks/pile.toml)" in top
     nested = rewrite(text, "studies/viewpoints.md", served)
     assert "![e](../results/errors/kgn/errors.png)" in nested and "[w](https://example.org/a.md)" in nested
+
+
+def _report_rows(lines: list[str], header_start: str) -> dict[str, dict[str, str]]:
+    """The table of ``results/benchmark.md`` whose header starts so: detector -> column -> cell."""
+    i = next(k for k, line in enumerate(lines) if line.startswith(header_start))
+    header = [c.strip() for c in lines[i].strip("|").split("|")]
+    out = {}
+    for line in lines[i + 2:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        out[cells[0]] = dict(zip(header, cells))
+    return out
+
+
+def test_readme_headline_table_is_the_reports_current_figures():
+    lines = (ROOT / "results" / "benchmark.md").read_text().splitlines()
+    loop, hard = _report_rows(lines, "| detector | single, primitives"), _report_rows(lines, "| detector | packed GSR")
+    columns = [(loop, "single, primitives"), (loop, "single, household"), (loop, "multi success"),
+               (loop, "single, real objects"), (hard, "pile GSR"), (hard, "pile DR"), (hard, "packed GSR")]
+    for detector in ("kgnv2", "kgn", "kgn_depth", "antipodal", "random", "oracle"):
+        cells = [re.sub(r" \[[^\]]*\]", "", table[detector][column]) for table, column in columns]
+        row = "| " + " | ".join([detector, *cells]) + " |"
+        assert row in README.read_text(), f"README's {detector} row is not results/benchmark.md's: {row}"
+        assert row in (ROOT / "docs" / "results.md").read_text(), detector
