@@ -49,7 +49,7 @@ Span = float | tuple[float, float]
 @dataclass(frozen=True)
 class CameraConfig:
     """The camera: on a sphere about ``target`` (world, m) at ``distance``, ``elevation_deg`` above the table
-    plane and ``azimuth_deg`` (``sim.camera.orbit_pose``: 0 = on the +y side, 90 = on the −x side, over the
+    plane and ``azimuth_deg`` (``camera.orbit_pose``: 0 = on the +y side, 90 = on the −x side, over the
     robot). Each of the three is one value (a fixed camera, the default) or a range ``[lo, hi]`` from which
     every trial draws its own camera uniformly (``draw``; seeded by the task's seed and the trial index, on a
     stream of its own so the scene does not change with it). ``depth_noise``: strength of the D435-like depth
