@@ -339,11 +339,13 @@ def _cmd_perf_backends(args) -> int:
 
 
 def _cmd_train(args) -> int:
-    from kgn_bench.model.train import load_train_config, train
+    from kgn_bench.eval.vision import held_out_evaluator
+    from kgn_bench.training.train import load_train_config, train
 
     cfg = load_train_config(args.config)
     _writable(Path(cfg.train.out), "training run folder")
-    print(f"wrote {train(cfg, progress=not args.quiet, device=args.device, threads=args.threads)}")
+    final = train(cfg, progress=not args.quiet, device=args.device, threads=args.threads, evaluate=held_out_evaluator)
+    print(f"wrote {final}")
     return 0
 
 
@@ -469,9 +471,11 @@ def _cmd_export(args) -> int:
 
 def _cmd_ship(args) -> int:
     from kgn_bench.model.checkpoint import export_weights
+    from kgn_bench.viz.figures import save_training_curves
 
     _writable(args.out, "weights folder")
     weights, card = export_weights(args.checkpoint, args.name, args.out)
+    save_training_curves(weights)
     print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
     return 0
 

@@ -6,7 +6,7 @@ import sys
 import pytest
 
 
-@pytest.mark.parametrize("module", ["kgn_bench.model.decode", "kgn_bench.model.train", "kgn_bench.data.format",
+@pytest.mark.parametrize("module", ["kgn_bench.model.decode", "kgn_bench.training.train", "kgn_bench.data.format",
                                     "kgn_bench.types"])
 def test_module_loads_no_simulator(module):
     code = (f"import sys, {module}; "

@@ -25,6 +25,7 @@ import json
 import math
 import platform
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,6 @@ from torch.utils.data import DataLoader
 
 from kgn_bench.config import parse_section, read_toml, resolve_task
 from kgn_bench.data.format import DatasetError
-from kgn_bench.data.training import AugmentConfig, GraspViewDataset
 from kgn_bench.environment import cpu_model
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.model.checkpoint import (
@@ -47,14 +47,15 @@ from kgn_bench.model.checkpoint import (
     save_checkpoint,
 )
 from kgn_bench.model.losses import LossWeights, kgn_loss
-from kgn_bench.model.network import NetworkConfig, build_network, count_parameters
+from kgn_bench.model.network import KGNNet, NetworkConfig, build_network, count_parameters
 from kgn_bench.model.preprocess import InputConfig
 from kgn_bench.model.targets import ASSIGNMENTS
-from kgn_bench.model.variants import get_variant
+from kgn_bench.model.variants import Variant, get_variant
 from kgn_bench.progress import Progress
 from kgn_bench.threads import available_cores
+from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset
 
-__all__ = ["TrainConfig", "TrainConfigError", "load_train_config", "machine_label", "train"]
+__all__ = ["HeldOutEvaluator", "TrainConfig", "TrainConfigError", "load_train_config", "machine_label", "train"]
 
 
 class TrainConfigError(KGNBenchError, ValueError):
@@ -144,28 +145,56 @@ def _lr_at(cfg: TrainSettings, epoch: int) -> float:
     return cfg.lr * cfg.lr_gamma ** sum(epoch >= s for s in cfg.lr_steps)
 
 
-def _evaluate(net, cfg: TrainConfig, data: Path, views: int) -> dict[str, Any]:
-    """GSR/GCR/OSR of the current weights on the first ``views`` test views."""
-    from kgn_bench.detectors.kgn import KGNDetector
-    from kgn_bench.eval.vision import evaluate_dataset
-
-    net.eval()
-    variant = get_variant(cfg.train.variant).with_scale_anchor(cfg.train.scale_anchor)
-    model = LoadedModel(net, variant, cfg.network, cfg.input, {})
-    detector = KGNDetector(variant.name, model=model)
-    metrics = evaluate_dataset(detector, data, split="test", views=views, progress=False)
-    net.train()
-    return metrics.summarise()
+HeldOutEvaluator = Callable[[LoadedModel, Path, int], dict[str, Any]]
+"""``evaluate(model, data, views)``: the held-out metrics of ``model`` (the network being trained, in eval
+mode, with its variant and configs) on the first ``views`` test views of the dataset ``data``, as the summary
+dict of ``eval.vision.VisionMetrics.summarise`` (``thresholds``: one row per threshold with ``label``,
+``gsr``, ``gcr``, ``osr``; ``images``: the views evaluated). ``eval.vision.held_out_evaluator`` is the one
+the ``train`` command passes."""
 
 
-def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, threads: int | None = None) -> Path:
-    """Train (or resume) the run ``cfg.train.out``; returns the path of ``final.pt``.
+@dataclass
+class _Run:
+    """One call of ``train``: the run folder ``out``, the dataset, the network and optimiser on ``device``,
+    and the epochs completed so far (``start``, ``history``; restored from ``last.pt`` on resume)."""
 
-    On the CPU, ``threads`` (default: torch's) sets the intra-op threads. On CUDA the same config trains
-    with bfloat16 autocast (mixed precision; the weights and the optimiser stay float32) and at least
-    ``min(8, cores − 1)`` data-loading processes; neither changes what a sample is, since augmentation is
-    seeded per (seed, epoch, item).
-    """
+    cfg: TrainConfig
+    out: Path
+    data: Path
+    variant: Variant
+    device: torch.device
+    loader_workers: int
+    dataset: GraspViewDataset
+    identity: dict[str, Any]
+    net: KGNNet
+    optim: torch.optim.Optimizer
+    commit: str
+    start: int = 0
+    history: list[dict[str, Any]] = field(default_factory=list)
+
+    def payload(self, epoch: int, with_optimizer: bool) -> dict[str, Any]:
+        """The checkpoint dict after ``epoch`` completed epochs (with the optimiser and torch RNG states for
+        ``last.pt``, without them for ``final.pt``)."""
+        cfg, net = self.cfg, self.net
+        p = {
+            **model_payload(net, self.variant.name, cfg.network, cfg.input, self.variant.scale_anchor),
+            "train": cfg.to_dict(),
+            "dataset": self.identity,
+            "git_commit": self.commit,
+            "epoch": epoch,
+            "history": self.history,
+            "parameters": count_parameters(net),
+            "machine": machine_label(self.device),
+        }
+        if with_optimizer:
+            p["optimizer"] = self.optim.state_dict()
+            p["torch_rng"] = torch.get_rng_state()
+        return p
+
+
+def _start_run(cfg: TrainConfig, device: str | None, threads: int | None) -> _Run:
+    """Create the run folder, pick the device and threads, seed torch with ``[train] seed``, then build the
+    dataset, the network and the optimiser in that order (so the initial weights depend on the seed only)."""
     t_cfg = cfg.train
     out = Path(t_cfg.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -185,78 +214,101 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, th
     identity = dataset_identity(data)
     net = build_network(variant, cfg.network).to(dev)
     optim = torch.optim.Adam(net.parameters(), lr=t_cfg.lr)
-    start, history = 0, []
     commit = git_commit()  # the code that starts the run (kept across resumes)
+    return _Run(cfg, out, data, variant, dev, loader_workers, dataset, identity, net, optim, commit)
 
-    last = out / "last.pt"
-    if last.exists():
-        ckpt = load_checkpoint(last)
-        if ckpt.get("train") != cfg.to_dict():
-            raise CheckpointError(f"{last} was written by a different config; use another [train] out or delete it")
-        if ckpt.get("dataset", {}).get("sha256") != identity["sha256"]:
-            raise CheckpointError(f"{last} was trained on another dataset than {data}")
-        net.load_state_dict(ckpt["model"])
-        optim.load_state_dict(ckpt["optimizer"])
-        start, history = int(ckpt["epoch"]), list(ckpt.get("history", []))
-        commit = ckpt.get("git_commit", commit)
-        torch.set_rng_state(ckpt["torch_rng"])
 
-    def payload(epoch: int, with_optimizer: bool) -> dict[str, Any]:
-        p = {
-            **model_payload(net, variant.name, cfg.network, cfg.input, variant.scale_anchor),
-            "train": cfg.to_dict(),
-            "dataset": identity,
-            "git_commit": commit,
-            "epoch": epoch,
-            "history": history,
-            "parameters": count_parameters(net),
-            "machine": machine_label(dev),
-        }
-        if with_optimizer:
-            p["optimizer"] = optim.state_dict()
-            p["torch_rng"] = torch.get_rng_state()
-        return p
+def _resume(run: _Run) -> None:
+    """Continue from ``last.pt`` if the run folder has one: weights, optimiser, completed epochs, history,
+    the starting commit and torch's RNG state. A checkpoint of another config or dataset is refused."""
+    last = run.out / "last.pt"
+    if not last.exists():
+        return
+    ckpt = load_checkpoint(last)
+    if ckpt.get("train") != run.cfg.to_dict():
+        raise CheckpointError(f"{last} was written by a different config; use another [train] out or delete it")
+    if ckpt.get("dataset", {}).get("sha256") != run.identity["sha256"]:
+        raise CheckpointError(f"{last} was trained on another dataset than {run.data}")
+    run.net.load_state_dict(ckpt["model"])
+    run.optim.load_state_dict(ckpt["optimizer"])
+    run.start, run.history = int(ckpt["epoch"]), list(ckpt.get("history", []))
+    run.commit = ckpt.get("git_commit", run.commit)
+    torch.set_rng_state(ckpt["torch_rng"])
 
-    net.train()
-    for epoch in range(start, t_cfg.epochs):
-        dataset.set_epoch(epoch)
-        for group in optim.param_groups:
-            group["lr"] = _lr_at(t_cfg, epoch)
-        loader = DataLoader(dataset, batch_size=t_cfg.batch_size, shuffle=True, drop_last=True,
-                            num_workers=loader_workers, collate_fn=_collate, persistent_workers=False,
-                            pin_memory=cuda, generator=torch.Generator().manual_seed(t_cfg.seed * 1000 + epoch))
-        bar = Progress(len(loader), f"epoch {epoch + 1}/{t_cfg.epochs}", unit="batch", enabled=progress)
-        sums: dict[str, float] = {}
-        t0 = time.perf_counter()
-        for x, targets in loader:
-            x = x.to(dev, non_blocking=cuda)
-            targets = {k: v.to(dev, non_blocking=cuda) for k, v in targets.items()}
-            with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
-                outputs = net(x)
-            loss, parts = kgn_loss({k: v.float() for k, v in outputs.items()}, targets, variant, cfg.loss)
-            if not math.isfinite(parts["total"]):
-                raise FloatingPointError(f"loss became {parts['total']} in epoch {epoch + 1}; lower [train] lr")
-            optim.zero_grad(set_to_none=True)
-            loss.backward()
-            optim.step()
-            for k, v in parts.items():
-                sums[k] = sums.get(k, 0.0) + v
-            bar.update(1, " ".join(f"{k} {v:.3f}" for k, v in parts.items()))
-        row: dict[str, Any] = {"epoch": epoch + 1, "lr": _lr_at(t_cfg, epoch),
-                               "seconds": round(time.perf_counter() - t0, 1)}
-        row.update({k: round(v / max(len(loader), 1), 5) for k, v in sums.items()})
+
+def _train_epoch(run: _Run, epoch: int, progress: bool) -> dict[str, Any]:
+    """One pass over the shuffled training split (0-based ``epoch``) at the epoch's learning rate
+    ``lr · γ^#{steps ≤ epoch}``; returns the history row: epoch (1-based), lr, seconds and the mean of each
+    loss term over the batches."""
+    t_cfg, dev = run.cfg.train, run.device
+    cuda = dev.type == "cuda"
+    run.dataset.set_epoch(epoch)
+    for group in run.optim.param_groups:
+        group["lr"] = _lr_at(t_cfg, epoch)
+    loader = DataLoader(run.dataset, batch_size=t_cfg.batch_size, shuffle=True, drop_last=True,
+                        num_workers=run.loader_workers, collate_fn=_collate, persistent_workers=False,
+                        pin_memory=cuda, generator=torch.Generator().manual_seed(t_cfg.seed * 1000 + epoch))
+    bar = Progress(len(loader), f"epoch {epoch + 1}/{t_cfg.epochs}", unit="batch", enabled=progress)
+    sums: dict[str, float] = {}
+    t0 = time.perf_counter()
+    for x, targets in loader:
+        x = x.to(dev, non_blocking=cuda)
+        targets = {k: v.to(dev, non_blocking=cuda) for k, v in targets.items()}
+        with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
+            outputs = run.net(x)
+        loss, parts = kgn_loss({k: v.float() for k, v in outputs.items()}, targets, run.variant, run.cfg.loss)
+        if not math.isfinite(parts["total"]):
+            raise FloatingPointError(f"loss became {parts['total']} in epoch {epoch + 1}; lower [train] lr")
+        run.optim.zero_grad(set_to_none=True)
+        loss.backward()
+        run.optim.step()
+        for k, v in parts.items():
+            sums[k] = sums.get(k, 0.0) + v
+        bar.update(1, " ".join(f"{k} {v:.3f}" for k, v in parts.items()))
+    row: dict[str, Any] = {"epoch": epoch + 1, "lr": _lr_at(t_cfg, epoch),
+                           "seconds": round(time.perf_counter() - t0, 1)}
+    row.update({k: round(v / max(len(loader), 1), 5) for k, v in sums.items()})
+    return row
+
+
+def _evaluate(run: _Run, evaluate: HeldOutEvaluator) -> dict[str, Any]:
+    """The history entries of a held-out evaluation of the current weights: ``eval`` (GSR/GCR/OSR per
+    threshold label) and ``eval_views``. The network is in eval mode during the call, in training mode after."""
+    cfg = run.cfg
+    run.net.eval()
+    summary = evaluate(LoadedModel(run.net, run.variant, cfg.network, cfg.input, {}), run.data, cfg.train.eval_views)
+    run.net.train()
+    return {"eval": {t["label"]: {k: t[k] for k in ("gsr", "gcr", "osr")} for t in summary["thresholds"]},
+            "eval_views": summary["images"]}
+
+
+def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, threads: int | None = None,
+          evaluate: HeldOutEvaluator | None = None) -> Path:
+    """Train (or resume) the run ``cfg.train.out``; returns the path of ``final.pt``.
+
+    After every ``eval_every``-th epoch and the last one, ``evaluate`` (if given; see ``HeldOutEvaluator``)
+    scores the weights on ``eval_views`` test views and the epoch's history row keeps the result; without
+    it no epoch is evaluated. On the CPU, ``threads`` (default: torch's) sets the intra-op threads. On CUDA
+    the same config trains with bfloat16 autocast (mixed precision; the weights and the optimiser stay
+    float32) and at least ``min(8, cores − 1)`` data-loading processes; neither changes what a sample is,
+    since augmentation is seeded per (seed, epoch, item).
+    """
+    t_cfg = cfg.train
+    run = _start_run(cfg, device, threads)
+    _resume(run)
+    run.net.train()
+    for epoch in range(run.start, t_cfg.epochs):
+        row = _train_epoch(run, epoch, progress)
         done = epoch + 1
-        if (t_cfg.eval_every and done % t_cfg.eval_every == 0) or done == t_cfg.epochs:
-            summary = _evaluate(net, cfg, data, t_cfg.eval_views)
-            row["eval"] = {t["label"]: {k: t[k] for k in ("gsr", "gcr", "osr")} for t in summary["thresholds"]}
-            row["eval_views"] = summary["images"]
-        history.append(row)
-        with (out / "history.jsonl").open("a") as f:
+        if evaluate is not None and ((t_cfg.eval_every and done % t_cfg.eval_every == 0) or done == t_cfg.epochs):
+            row.update(_evaluate(run, evaluate))
+        run.history.append(row)
+        with (run.out / "history.jsonl").open("a") as f:
             f.write(json.dumps(row) + "\n")
-        save_checkpoint(last, payload(done, with_optimizer=True))
+        save_checkpoint(run.out / "last.pt", run.payload(done, with_optimizer=True))
         if progress:
             print(f"epoch {done}: " + " ".join(f"{k} {row[k]}" for k in ("total", "hm", "kpts", "width", "scale")
                                                if k in row), flush=True)
-    final = out / "final.pt"
-    save_checkpoint(final, payload(t_cfg.epochs, with_optimizer=False))
+    final = run.out / "final.pt"
+    save_checkpoint(final, run.payload(t_cfg.epochs, with_optimizer=False))
     return final
