@@ -18,6 +18,7 @@ from typing import Any
 import tomllib
 
 from kgn_bench.errors import KGNBenchError
+from kgn_bench.execution import GRASP_DEPTH, PREGRASP_DISTANCE
 from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
 from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
@@ -143,8 +144,8 @@ class ExecutionConfig:
     contacts, which were most of a round's physics. Off, it stays in the bin for the rest of the round (the
     protocol before 2026-12-05). No effect on ``single_object``."""
 
-    pregrasp_distance: float = 0.10
-    grasp_depth: float = 0.01
+    pregrasp_distance: float = PREGRASP_DISTANCE
+    grasp_depth: float = GRASP_DEPTH
     approach_time: float = 0.8
     lift_height: float = 0.15
     min_lift: float = 0.10
