@@ -17,6 +17,10 @@ states, the full config, the dataset identity and the git commit), ``history.jso
 epoch: mean losses, learning rate, seconds and, when evaluated, GSR/GCR/OSR) and, at the end,
 ``final.pt`` (weights without optimizer state). Running the same command again resumes after the last
 completed epoch; a config that differs from the checkpoint's is refused.
+
+The held-out evaluation is passed in (``train(..., evaluate=...)``, a ``HeldOutEvaluator``): this module
+imports neither the detectors nor the evaluation code. ``kgn-bench train`` passes
+``eval.vision.held_out_evaluator``; without an evaluator no epoch is evaluated.
 """
 
 from __future__ import annotations
