@@ -144,14 +144,14 @@ def _cmd_data_show(args) -> int:
 
 
 def _cmd_perf_data(args) -> int:
-    from kgn_bench.perf import perf_data
+    from kgn_bench.bench.perf import perf_data
 
     print(perf_data(scenes=args.scenes, workers=args.workers, mode=args.mode))
     return 0
 
 
 def _cmd_perf_import(args) -> int:
-    from kgn_bench.perf import perf_import
+    from kgn_bench.bench.perf import perf_import
 
     print(perf_import(args.mesh, faces=args.faces, verify=args.verify))
     return 0
@@ -324,14 +324,14 @@ def _cmd_replay(args) -> int:
 
 
 def _cmd_perf_run(args) -> int:
-    from kgn_bench.perf import perf_run
+    from kgn_bench.bench.perf import perf_run
 
     print(perf_run(args.task, detector=args.detector, trials=args.trials, workers=args.workers))
     return 0
 
 
 def _cmd_perf_backends(args) -> int:
-    from kgn_bench.perf import perf_backends
+    from kgn_bench.bench.perf import perf_backends
 
     print(perf_backends(args.task, detector=args.detector, workers=args.workers, rounds=args.rounds,
                         address=args.address, trials=args.trials))
@@ -339,11 +339,13 @@ def _cmd_perf_backends(args) -> int:
 
 
 def _cmd_train(args) -> int:
-    from kgn_bench.model.train import load_train_config, train
+    from kgn_bench.eval.vision import held_out_evaluator
+    from kgn_bench.training.train import load_train_config, train
 
     cfg = load_train_config(args.config)
     _writable(Path(cfg.train.out), "training run folder")
-    print(f"wrote {train(cfg, progress=not args.quiet, device=args.device, threads=args.threads)}")
+    final = train(cfg, progress=not args.quiet, device=args.device, threads=args.threads, evaluate=held_out_evaluator)
+    print(f"wrote {final}")
     return 0
 
 
@@ -416,7 +418,7 @@ def _cmd_perf_kernels(args) -> int:
 
 
 def _cmd_perf_detector(args) -> int:
-    from kgn_bench.perf import perf_detector
+    from kgn_bench.bench.perf import perf_detector
 
     print(perf_detector(args.variant, args.weights, frames=args.frames, threads=args.threads, data=args.data))
     return 0
@@ -469,9 +471,11 @@ def _cmd_export(args) -> int:
 
 def _cmd_ship(args) -> int:
     from kgn_bench.model.checkpoint import export_weights
+    from kgn_bench.viz.figures import save_training_curves
 
     _writable(args.out, "weights folder")
     weights, card = export_weights(args.checkpoint, args.name, args.out)
+    save_training_curves(weights)
     print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
     return 0
 

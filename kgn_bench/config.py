@@ -18,6 +18,7 @@ from typing import Any
 import tomllib
 
 from kgn_bench.errors import KGNBenchError
+from kgn_bench.execution import GRASP_DEPTH, PREGRASP_DISTANCE
 from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
 from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
@@ -49,7 +50,7 @@ Span = float | tuple[float, float]
 @dataclass(frozen=True)
 class CameraConfig:
     """The camera: on a sphere about ``target`` (world, m) at ``distance``, ``elevation_deg`` above the table
-    plane and ``azimuth_deg`` (``sim.camera.orbit_pose``: 0 = on the +y side, 90 = on the −x side, over the
+    plane and ``azimuth_deg`` (``camera.orbit_pose``: 0 = on the +y side, 90 = on the −x side, over the
     robot). Each of the three is one value (a fixed camera, the default) or a range ``[lo, hi]`` from which
     every trial draws its own camera uniformly (``draw``; seeded by the task's seed and the trial index, on a
     stream of its own so the scene does not change with it). ``depth_noise``: strength of the D435-like depth
@@ -143,8 +144,8 @@ class ExecutionConfig:
     contacts, which were most of a round's physics. Off, it stays in the bin for the rest of the round (the
     protocol before 2026-12-05). No effect on ``single_object``."""
 
-    pregrasp_distance: float = 0.10
-    grasp_depth: float = 0.01
+    pregrasp_distance: float = PREGRASP_DISTANCE
+    grasp_depth: float = GRASP_DEPTH
     approach_time: float = 0.8
     lift_height: float = 0.15
     min_lift: float = 0.10

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kgn_bench.camera import Intrinsics
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import backproject_strided, transform_points
-from kgn_bench.sim.camera import Intrinsics
 
 __all__ = ["RGBD", "Candidates", "DetectorError", "Observation"]
 

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from kgn_bench.bench.selector import score_candidates
+from kgn_bench.camera import REALSENSE, orbit_pose
 from kgn_bench.config import SelectorConfig
 from kgn_bench.detectors import Candidates, Detector, DetectorError, Observation, make_detector
 from kgn_bench.detectors.antipodal import AntipodalDetector, _extent, _lowest_box_z, estimate_normals
 from kgn_bench.geometry import backproject, make_pose, matrix_from_quat_wxyz, rot_z
 from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.shapes.primitives import Cuboid, Stick
-from kgn_bench.sim.camera import REALSENSE, orbit_pose
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.robot import PARK_Q, add_workcell

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
+from kgn_bench.camera import REALSENSE, CameraSampler, Intrinsics, convert_camera_frame, look_at, orbit_pose
 from kgn_bench.geometry import invert_pose, project, transform_points
-from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics, convert_camera_frame, look_at, orbit_pose
 
 
 def test_convert_camera_frame_is_an_involution_and_flips_y_z():

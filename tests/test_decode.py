@@ -5,6 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
+from kgn_bench.camera import REALSENSE
 from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz, rot_x, rot_y, rot_z, rotation_angle
 from kgn_bench.grasp import keypoint_box
 from kgn_bench.model.decode import DecodeConfig, decode, depth_at, solve_box_pnp
@@ -19,7 +20,6 @@ from kgn_bench.model.targets import (
 )
 from kgn_bench.model.variants import BOX_SIDE, VARIANTS, get_variant
 from kgn_bench.shapes import TRAIN_DENSITY, Cuboid, Cylinder
-from kgn_bench.sim.camera import REALSENSE
 
 K = REALSENSE.K
 M_HALF = np.array([[0.125, 0.0, 0.0], [0.0, 0.125, 0.0]])  # input scale 0.5, stride 4: 640×480 → 80×60

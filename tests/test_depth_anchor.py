@@ -2,8 +2,8 @@
 
 import numpy as np
 
+from kgn_bench.camera import REALSENSE
 from kgn_bench.model.depth_anchor import depth_at, observed_distance
-from kgn_bench.sim.camera import REALSENSE
 
 K = REALSENSE.K
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kgn_bench.sim.camera import REALSENSE
+from kgn_bench.camera import REALSENSE
 from kgn_bench.sim.depth_noise import DepthNoise, occlusion_shadow
 
 FX = REALSENSE.fx

@@ -4,6 +4,7 @@ random detector's seeding — on a real rendered work-cell scene."""
 import numpy as np
 import pytest
 
+from kgn_bench.camera import REALSENSE, orbit_pose
 from kgn_bench.detectors import DETECTORS, Candidates, Detector, DetectorError, Observation, make_detector
 from kgn_bench.detectors.oracle import TILT_DEG, OracleDetector, tilted
 from kgn_bench.detectors.random import RandomDetector
@@ -11,7 +12,6 @@ from kgn_bench.geometry import make_pose, rot_z
 from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.shapes.base import EVAL_DENSITY
 from kgn_bench.shapes.primitives import Cuboid, Sphere
-from kgn_bench.sim.camera import REALSENSE, orbit_pose
 from kgn_bench.sim.collision import proxy_hits_table
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.render import SceneRenderer

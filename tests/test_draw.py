@@ -1,7 +1,7 @@
 import numpy as np
 
+from kgn_bench.camera import REALSENSE
 from kgn_bench.geometry import make_pose
-from kgn_bench.sim.camera import REALSENSE
 from kgn_bench.viz.draw import colorize_depth, draw_grasps, show_view
 
 

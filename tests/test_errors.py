@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from kgn_bench.camera import REALSENSE
 from kgn_bench.eval.errors import TERMS, ErrorTable, decompose_image
 from kgn_bench.geometry import make_pose, rot_x
 from kgn_bench.grasp import GraspSet
-from kgn_bench.sim.camera import REALSENSE
 from kgn_bench.types import Observation
 
 

@@ -17,8 +17,8 @@ from kgn_bench.eval.experiments import (
     build_table2,
     evaluate_cached,
 )
-from kgn_bench.model.train import load_train_config
 from kgn_bench.model.variants import get_variant
+from kgn_bench.training.train import load_train_config
 
 ROOT = Path(__file__).parents[1]
 

@@ -4,7 +4,16 @@ import cv2
 import numpy as np
 import pytest
 
-from kgn_bench.viz.figures import DPI, Line, Panel, bar_chart, line_panels, save_figure, training_figure
+from kgn_bench.viz.figures import (
+    DPI,
+    Line,
+    Panel,
+    bar_chart,
+    line_panels,
+    save_figure,
+    save_training_curves,
+    training_figure,
+)
 
 
 def _read(path):
@@ -46,3 +55,22 @@ def test_training_figure_plots_losses_and_held_out_metrics():
     left, right = fig.axes
     assert [line.get_label() for line in left.lines] == ["total", "hm"]
     assert len(right.lines) == 3 and right.lines[0].get_ydata()[0] == pytest.approx(40.0)
+
+
+def test_training_curves_of_shipped_weights(tmp_path, small_model):
+    """``kgn-bench ship``'s curves: the PNG beside the weights is ``training_figure`` of their history, titled
+    with the weights' name and the training config; weights without history get none."""
+    from kgn_bench.model.checkpoint import export_weights
+
+    history = [{"epoch": 1, "total": 2.0, "hm": 1.0, "eval": {"1 cm / 20°": {"gsr": 0.4, "gcr": 0.2, "osr": 0.7}},
+                "eval_views": 4}, {"epoch": 2, "total": 1.0, "hm": 0.5}]
+    small_model(tmp_path / "final.pt", epoch=2, history=history, train={"name": "train_tiny"})
+    weights, _ = export_weights(tmp_path / "final.pt", "mine", tmp_path / "w")
+    assert not (tmp_path / "w" / "mine_training.png").exists()  # the model layer draws nothing
+    png = save_training_curves(weights)
+    assert png == tmp_path / "w" / "mine_training.png"
+    save_figure(training_figure(history, "mine: train_tiny"), tmp_path / "expected.png")
+    assert png.read_bytes() == (tmp_path / "expected.png").read_bytes()
+    small_model(tmp_path / "bare.pt", epoch=0, history=[])
+    bare, _ = export_weights(tmp_path / "bare.pt", "bare", tmp_path / "w")
+    assert save_training_curves(bare) is None and not (tmp_path / "w" / "bare_training.png").exists()

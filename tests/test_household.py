@@ -186,9 +186,9 @@ def test_banana_lean_is_its_resting_tilt():
 def test_objects_settle_in_every_rest_pose(name):
     """Dropped in a real MuJoCo scene in each rest pose, the object comes to rest on the table near where it
     was put, and the oracle has a collision-free grasp from above for it."""
+    from kgn_bench.camera import orbit_pose
     from kgn_bench.detectors.base import Observation
     from kgn_bench.detectors.oracle import OracleDetector
-    from kgn_bench.sim.camera import orbit_pose
     from kgn_bench.sim.placement import PlacementConfig, settle
     from kgn_bench.sim.scene import Scene, SceneObject
 

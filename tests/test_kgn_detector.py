@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import torch
 
+from kgn_bench.camera import REALSENSE
 from kgn_bench.detectors import DetectorError, Observation, make_detector
 from kgn_bench.detectors.kgn import WEIGHTS_DIR, KGNDetector, weights_path
 from kgn_bench.model.checkpoint import CheckpointError
-from kgn_bench.sim.camera import REALSENSE
 
 
 def _constant_maps(hm_bias):

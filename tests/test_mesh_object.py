@@ -22,6 +22,8 @@ def test_block_as_a_shape(object_library):
     assert shape.mass() == pytest.approx(0.168) and shape.volume() == pytest.approx(0.04 * 0.06 * 0.10)
     assert all(np.allclose(p.R @ p.R.T, np.eye(3), atol=1e-6) for p in shape.rest_poses())
     assert shape_from_dims("test_block", shape.dims()).folder == shape.folder
+    with pytest.raises(TypeError, match="loaded from its folder by name"):  # names resolve in shapes.library
+        MeshObject.from_dims(shape.dims())
 
 
 def test_grasp_density_subsamples_the_verified_grasps(object_library):

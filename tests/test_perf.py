@@ -2,7 +2,7 @@
 
 import pytest
 
-from kgn_bench.perf import perf_data
+from kgn_bench.bench.perf import perf_data
 
 
 def test_perf_data_reports_views_per_second_and_the_split():
@@ -13,7 +13,7 @@ def test_perf_data_reports_views_per_second_and_the_split():
 
 
 def test_perf_detector_times_any_non_privileged_detector(tiny_dataset):
-    from kgn_bench.perf import perf_detector
+    from kgn_bench.bench.perf import perf_detector
 
     root, _ = tiny_dataset
     text = perf_detector("antipodal", frames=1, threads=1, data=root)
@@ -23,7 +23,7 @@ def test_perf_detector_times_any_non_privileged_detector(tiny_dataset):
 
 
 def test_perf_import_times_each_stage():
-    from kgn_bench.perf import perf_import
+    from kgn_bench.bench.perf import perf_import
 
     report = perf_import(faces=1000, verify=24, hulls=2)
     assert "1000 faces" in report and "wall:" in report
@@ -33,7 +33,7 @@ def test_perf_import_times_each_stage():
 
 def test_perf_backends_times_each_backend_and_requires_the_same_summary(tmp_path):
     """Two real `kgn-bench run` commands, the local pool and a Ray each starts for itself (~10 s)."""
-    from kgn_bench.perf import PerfError, perf_backends
+    from kgn_bench.bench.perf import PerfError, perf_backends
 
     report = perf_backends("tasks/ci_oracle.toml", detector="oracle", workers=2, rounds=1)
     assert "| local pool | Ray started by the command |" in report

@@ -12,10 +12,10 @@ import pytest
 import rerun as rr
 import rerun.chunk
 
+from kgn_bench.camera import orbit_pose
 from kgn_bench.geometry import make_pose, rot_y, rot_z
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.primitives import Cuboid
-from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.scene import Scene, SceneObject
 from kgn_bench.viz.recording import (

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from kgn_bench.camera import REALSENSE, orbit_pose
 from kgn_bench.geometry import backproject, invert_pose, make_pose, project, transform_points
 from kgn_bench.shapes.primitives import Cuboid, Sphere, Stick
-from kgn_bench.sim.camera import REALSENSE, orbit_pose
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.scene import Scene, SceneObject
 

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from kgn_bench.camera import REALSENSE
 from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz, rot_x, rot_y, rot_z
 from kgn_bench.grasp import flip_180
 from kgn_bench.model.targets import (
@@ -16,7 +17,6 @@ from kgn_bench.model.targets import (
     targets_to_maps,
 )
 from kgn_bench.model.variants import BOX_SIDE, get_variant
-from kgn_bench.sim.camera import REALSENSE
 
 K = REALSENSE.K
 M_HALF = np.array([[0.125, 0.0, 0.0], [0.0, 0.125, 0.0]])  # input scale 0.5, stride 4: 640×480 → 80×60

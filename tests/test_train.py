@@ -6,8 +6,9 @@ import pytest
 import torch
 
 from kgn_bench.environment import cpu_model
+from kgn_bench.eval.vision import held_out_evaluator
 from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model
-from kgn_bench.model.train import TrainConfigError, load_train_config, machine_label, train
+from kgn_bench.training.train import TrainConfigError, load_train_config, machine_label, train
 
 TINY = """
 [train]
@@ -43,7 +44,7 @@ def _config(tmp_path, data, epochs=1, variant="kgnv2", name="train_tiny"):
 def test_tiny_run_trains_checkpoints_and_resumes(tmp_path, tiny_dataset):
     root, _ = tiny_dataset
     cfg = load_train_config(_config(tmp_path, root))
-    final = train(cfg, progress=False)
+    final = train(cfg, progress=False, evaluate=held_out_evaluator)
     history = [json.loads(line) for line in (tmp_path / "run" / "history.jsonl").read_text().splitlines()]
     assert [h["epoch"] for h in history] == [1]
     assert history[0]["total"] > 0 and "eval" in history[0]
@@ -55,12 +56,36 @@ def test_tiny_run_trains_checkpoints_and_resumes(tmp_path, tiny_dataset):
     assert "optimizer" not in shipped
     assert load_model(final).variant.name == "kgnv2"
     # the same command again: nothing left to train, history unchanged
-    train(cfg, progress=False)
+    train(cfg, progress=False, evaluate=held_out_evaluator)
     assert len((tmp_path / "run" / "history.jsonl").read_text().splitlines()) == 1
     # a different config writing to the same folder is refused
     changed = load_train_config(_config(tmp_path, root, epochs=2, name="changed"))
     with pytest.raises(CheckpointError, match="different config"):
-        train(changed, progress=False)
+        train(changed, progress=False, evaluate=held_out_evaluator)
+
+
+def test_evaluator_runs_on_schedule_and_leaves_the_weights_alone(tmp_path, tiny_dataset):
+    """The held-out evaluator is an argument: called after every ``eval_every``-th epoch with the network in
+    eval mode, its figures go into the history; without one no epoch is evaluated and the weights are the same."""
+    root, _ = tiny_dataset
+    calls = []
+
+    def fake(model, data, views):
+        calls.append((model.net.training, model.variant.name, str(data), views))
+        return {"thresholds": [{"label": "1cm/20°", "gsr": 0.5, "gcr": 0.25, "osr": None}], "images": views}
+
+    finals = {}
+    for name, evaluate in (("with", fake), ("without", None)):
+        (tmp_path / name).mkdir()
+        cfg = load_train_config(_config(tmp_path / name, root, epochs=2))
+        finals[name] = load_checkpoint(train(cfg, progress=False, evaluate=evaluate))
+    assert calls == [(False, "kgnv2", str(root), 1)] * 2
+    with_eval, without = finals["with"]["history"], finals["without"]["history"]
+    assert [h["eval"] for h in with_eval] == [{"1cm/20°": {"gsr": 0.5, "gcr": 0.25, "osr": None}}] * 2
+    assert all("eval" not in h and "eval_views" not in h for h in without)
+    assert [h["total"] for h in with_eval] == [h["total"] for h in without]
+    for k, v in finals["with"]["model"].items():
+        assert torch.equal(v, finals["without"]["model"][k]), k
 
 
 @pytest.mark.parametrize("text, message", [

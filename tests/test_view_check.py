@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from kgn_bench.bench.trial import check_cameras
+from kgn_bench.camera import orbit_pose
 from kgn_bench.config import apply_override, load_task
-from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.robot import PARK_Q, add_workcell

@@ -107,13 +107,15 @@ def probe(records: bool = False) -> dict[str, Any]:
         out["ms_per_frame"] = round(1e3 * float(np.median(times)), 2)
         if records:
             from kgn_bench.bench.check import read_run
-            from kgn_bench.cli import main
+            from kgn_bench.bench.runner import run_benchmark
+            from kgn_bench.config import load_task, validate
 
             digests = []
             for task in _RECORD_TASKS:
                 run = Path(tmp) / task
-                if main(["run", task, "--detector", "kgnv2", "--workers", "1", "--quiet", "--out", str(run)]):
-                    raise RuntimeError(f"the {task} run failed")
+                config = load_task(task)  # what `kgn-bench run TASK --detector kgnv2 --workers 1 --quiet` runs
+                validate(config, task)
+                run_benchmark(config, "kgnv2", run, workers=1, progress=False)
                 digests += [t.sha256.encode() for t in read_run(run).fingerprint.trials]
             out["records"] = _sha(digests)
     out["kernels"] = kernels.describe()

@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
+from kgn_bench.camera import orbit_pose
 from kgn_bench.config import CLUTTER_PROTOCOLS, TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.geometry import quat_wxyz_from_matrix
 from kgn_bench.shapes import sample_shape
-from kgn_bench.sim.camera import orbit_pose
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.depth_noise import DepthNoise
 from kgn_bench.sim.placement import PlacementConfig, add_pile_box, pack_objects, pile_objects, place_objects, settle

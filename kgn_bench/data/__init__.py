@@ -1,1 +1,2 @@
-"""The Primitive Shape dataset: generation, file format and (later) training data."""
+"""The Primitive Shape dataset: generation (``data.generate``) and the file format (``data.format``); the
+training samples drawn from it live in ``kgn_bench.training.dataset``."""

@@ -26,10 +26,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from kgn_bench.camera import Intrinsics
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.grasp import GraspSet
 from kgn_bench.shapes import GraspDensity, shape_from_dims
-from kgn_bench.sim.camera import Intrinsics
 from kgn_bench.types import RGBD
 
 __all__ = [

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgn_bench.camera import REALSENSE, CameraSampler, Intrinsics
 from kgn_bench.data.format import (
     FORMAT_VERSION,
     DatasetError,
@@ -33,7 +34,6 @@ from kgn_bench.io import atomic_write_text
 from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, is_known, sample_shape, shape_from_dims
-from kgn_bench.sim.camera import REALSENSE, CameraSampler, Intrinsics
 from kgn_bench.sim.collision import LABEL_VERSION, label_scene
 from kgn_bench.sim.placement import PlacementConfig, place_objects, rectify_axisymmetric, settle
 from kgn_bench.sim.render import RGBD, SceneRenderer

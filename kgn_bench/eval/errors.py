@@ -38,7 +38,8 @@ from kgn_bench.io import atomic_write_text
 from kgn_bench.progress import Progress
 from kgn_bench.types import Candidates, Observation
 
-from .vision import SHAPES, detector_call, iter_views, nearest_grasps, shape_column
+from .views import detector_call, iter_views
+from .vision import SHAPES, nearest_grasps, shape_column
 
 __all__ = ["TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image", "grasp_errors", "markdown",
            "write_errors"]

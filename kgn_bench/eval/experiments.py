@@ -91,7 +91,7 @@ class ModelSpec:
     @property
     def commands(self) -> str:
         """How to produce the weights: train, then export (the run folder is the config's ``[train] out``)."""
-        from kgn_bench.model.train import load_train_config
+        from kgn_bench.training.train import load_train_config
 
         out = load_train_config(Path(self.config).stem).train.out
         return f"kgn-bench train {self.config} && kgn-bench ship {out}/final.pt --name {self.weights}"

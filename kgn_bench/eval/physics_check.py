@@ -28,7 +28,8 @@ from kgn_bench.shapes import shape_from_dims
 from kgn_bench.sim.grasp_verify import verify_grasps
 from kgn_bench.types import Candidates, Observation
 
-from .vision import SHAPES, THRESHOLDS, detector_call, iter_views, nearest_grasps, shape_column
+from .views import detector_call, iter_views
+from .vision import SHAPES, THRESHOLDS, nearest_grasps, shape_column
 
 __all__ = ["physics_success", "to_markdown"]
 

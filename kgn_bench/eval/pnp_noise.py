@@ -28,11 +28,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from kgn_bench.camera import REALSENSE
 from kgn_bench.grasp import grasp_rotation_error, keypoints_in_frame
 from kgn_bench.io import atomic_write_text
 from kgn_bench.model.decode import solve_box_pnp_batch
 from kgn_bench.model.variants import BOX_SIDE, get_variant
-from kgn_bench.sim.camera import REALSENSE
 
 __all__ = ["BOXES", "PnpNoiseConfig", "PnpNoiseRow", "plot_pnp_noise", "random_rotations", "rows_to_csv",
            "run_pnp_noise", "write_pnp_noise"]

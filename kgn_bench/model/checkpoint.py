@@ -266,8 +266,9 @@ def _pct(x: float | None) -> str:
 
 def export_weights(src: Path, name: str, out_dir: Path) -> tuple[Path, Path]:
     """Copy a checkpoint's weights (no optimizer state) to ``out_dir/<name>.pt`` and write the model card
-    ``out_dir/<name>.md`` and its training curves ``out_dir/<name>_training.png``; returns the weights and
-    card paths."""
+    ``out_dir/<name>.md``; returns the weights and card paths. The card shows the training curves
+    ``out_dir/<name>_training.png``, which ``viz.figures.save_training_curves(weights)`` draws (the model
+    layer draws nothing)."""
     data = load_checkpoint(src)
     slim = {k: v for k, v in data.items() if k not in ("optimizer", "torch_rng", "format", "version")}
     slim["model"] = {k: v.to(torch.float32) if v.is_floating_point() else v for k, v in slim["model"].items()}
@@ -276,9 +277,4 @@ def export_weights(src: Path, name: str, out_dir: Path) -> tuple[Path, Path]:
     save_checkpoint(weights, slim)
     card = out_dir / f"{name}.md"
     atomic_write_text(card, model_card(data, name, weights.stat().st_size, file_sha256(weights)))
-    if data.get("history"):
-        from kgn_bench.viz.figures import save_figure, training_figure
-
-        save_figure(training_figure(data["history"], f"{name}: {data.get('train', {}).get('name', '')}"),
-                    out_dir / f"{name}_training.png")
     return weights, card

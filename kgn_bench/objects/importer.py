@@ -296,15 +296,8 @@ def _write_manifest(folder: Path, manifest: dict) -> None:
     (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
 
 
-def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig(), root: Path | None = None,
-                overwrite: bool = False, preview: bool = True, progress: Callable[[str], None] | None = None) -> Path:
-    """Import the mesh file ``path`` as object ``name`` into ``root`` (default the user's library); returns
-    the new object folder. The steps are in the module doc; ``progress`` is told each stage as it starts."""
-    say = progress or (lambda _: None)
-    from kgn_bench.sim.grasp_verify import verify_grasps
-
-    path = Path(path)
-    t0 = time.perf_counter()
+def _target(name: str, root: Path | None, overwrite: bool) -> tuple[Path, Path]:
+    """The library root and the object folder ``root/name``; refuses a bad or taken name (step 0)."""
     if not NAME_PATTERN.fullmatch(name):
         raise ObjectError(f"object name {name!r}: use lower-case letters, digits, '_' and '-' (≤ 63 characters)")
     if name in OBJECTS:
@@ -319,11 +312,13 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     target = root / name
     if (target / MANIFEST).exists() and not overwrite:
         raise ObjectError(f"object {name!r} already exists in {root} (pass --overwrite to replace it)")
-    source_bytes = path.read_bytes() if path.is_file() else b""
-    loaded = _read(path)
-    say(f"repairing {len(loaded.faces)} faces")
-    mesh = repair_mesh(loaded, str(path))
-    t_repair = time.perf_counter() - t0
+    return root, target
+
+
+def _scale_and_centre(mesh: trimesh.Trimesh, config: ImportConfig, path: Path) -> tuple[float, np.ndarray]:
+    """Steps 3-4, in place: scale the repaired mesh by ``config.scale`` or to ``config.size``, check its
+    extents, and move the origin to its centre of mass (the object frame keeps the file's axes). Returns the
+    scale and the extents (m) after scaling."""
     scale = config.scale if config.scale is not None else (config.size / float(mesh.extents.max())
                                                            if config.size is not None else 1.0)
     mesh.apply_scale(scale)
@@ -335,13 +330,14 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
         raise ObjectError(f"{path}: only {ext.min() * 1000:.1f} mm thick after scaling (at least "
                           f"{MIN_EXTENT * 1000:.0f} mm)")
     mesh.apply_translation(-mesh.center_mass)
-    rng = np.random.default_rng(config.seed)
+    return scale, ext
+
+
+def _candidates(mesh: trimesh.Trimesh, rng: np.random.Generator, config: ImportConfig,
+                path: Path) -> tuple[np.ndarray, np.ndarray, int, float]:
+    """Step 7's candidates: antipodal grasps (object frame) and their widths, cut to at most ``config.verify``
+    spread ones; with the number sampled and the sampling's seconds."""
     t1 = time.perf_counter()
-    say(f"decomposing {len(mesh.faces)} faces into convex pieces (CoACD)")
-    hulls = _decompose(mesh, config, root / ".cache" / "coacd")
-    t_decomp = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    say("sampling antipodal grasps")
     poses, widths = sample_antipodal_grasps(mesh, rng, config.sampling)
     t_sample = time.perf_counter() - t1
     if len(poses) == 0:
@@ -352,8 +348,66 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     if len(poses) > config.verify:
         pick = diverse_subset(poses, config.verify, rng)
         poses, widths = poses[pick], widths[pick]
+    return poses, widths, candidates, t_sample
+
+
+def _manifest(name: str, path: Path, source_bytes: bytes, config: ImportConfig, mesh: trimesh.Trimesh,
+              scale: float, ext: np.ndarray, hulls: int) -> dict:
+    """The manifest before the grasp check: identity, source, licence, scale, extents, mass, hulls, rest poses
+    (step 6) and the import settings."""
     volume = float(mesh.volume)
     mass = config.mass if config.mass is not None else config.density * volume
+    return {
+        "version": MANIFEST_VERSION, "name": name, "source": path.name,
+        "source_sha256": hashlib.sha256(source_bytes).hexdigest(), "licence": config.licence,
+        "source_note": config.source_note, "scale": scale, "extents_m": ext.round(6).tolist(),
+        "faces": len(mesh.faces), "volume": volume, "mass": float(mass),
+        "density": float(mass / volume), "color": list(config.color), "hulls": hulls,
+        "rest_poses": _rest_poses(mesh, config.seed),
+        "import": {k: v for k, v in asdict(config).items() if k not in ("licence", "source_note")},
+    }
+
+
+def _keep_held(tmp: Path, poses: np.ndarray, widths: np.ndarray, path: Path,
+               say: Callable[[str], None]) -> tuple[np.ndarray, float]:
+    """Step 7's check: the grasps of the half-written folder ``tmp`` that hold in physics
+    (``sim.grasp_verify``), saved to its ``grasps.npz``; returns the held mask and the check's seconds."""
+    from kgn_bench.sim.grasp_verify import verify_grasps
+
+    np.savez(tmp / "grasps.npz", poses=np.zeros((0, 4, 4)), widths=np.zeros(0))
+    shape = MeshObject(tmp)
+    t1 = time.perf_counter()
+    say(f"checking {len(poses)} grasps in physics")
+    held = verify_grasps(shape, poses, widths)
+    t_verify = time.perf_counter() - t1
+    if held.sum() < MIN_GRASPS:
+        raise ObjectError(f"{path}: only {int(held.sum())} of {len(poses)} checked grasps held in physics "
+                          f"(at least {MIN_GRASPS} needed)")
+    np.savez(tmp / "grasps.npz", poses=poses[held], widths=widths[held])
+    return held, t_verify
+
+
+def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig(), root: Path | None = None,
+                overwrite: bool = False, preview: bool = True, progress: Callable[[str], None] | None = None) -> Path:
+    """Import the mesh file ``path`` as object ``name`` into ``root`` (default the user's library); returns
+    the new object folder. The steps are in the module doc; ``progress`` is told each stage as it starts."""
+    say = progress or (lambda _: None)
+    path = Path(path)
+    t0 = time.perf_counter()
+    root, target = _target(name, root, overwrite)
+    source_bytes = path.read_bytes() if path.is_file() else b""
+    loaded = _read(path)
+    say(f"repairing {len(loaded.faces)} faces")
+    mesh = repair_mesh(loaded, str(path))
+    timing = {"repair": time.perf_counter() - t0}
+    scale, ext = _scale_and_centre(mesh, config, path)
+    rng = np.random.default_rng(config.seed)
+    t1 = time.perf_counter()
+    say(f"decomposing {len(mesh.faces)} faces into convex pieces (CoACD)")
+    hulls = _decompose(mesh, config, root / ".cache" / "coacd")
+    timing["decompose"] = time.perf_counter() - t1
+    say("sampling antipodal grasps")
+    poses, widths, candidates, timing["sample"] = _candidates(mesh, rng, config, path)
     root.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=root))
     tmp.chmod(0o755)  # mkdtemp's 0700 would hide the object from workers running as another user
@@ -363,28 +417,10 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
         for k, hull in enumerate(hulls):
             hull.export(tmp / "collision" / f"hull_{k:02d}.ply")
         say("finding the rest poses")
-        manifest = {
-            "version": MANIFEST_VERSION, "name": name, "source": path.name,
-            "source_sha256": hashlib.sha256(source_bytes).hexdigest(), "licence": config.licence,
-            "source_note": config.source_note, "scale": scale, "extents_m": ext.round(6).tolist(),
-            "faces": len(mesh.faces), "volume": volume, "mass": float(mass),
-            "density": float(mass / volume), "color": list(config.color), "hulls": len(hulls),
-            "rest_poses": _rest_poses(mesh, config.seed),
-            "import": {k: v for k, v in asdict(config).items() if k not in ("licence", "source_note")},
-        }
+        manifest = _manifest(name, path, source_bytes, config, mesh, scale, ext, len(hulls))
         _write_manifest(tmp, manifest)
-        np.savez(tmp / "grasps.npz", poses=np.zeros((0, 4, 4)), widths=np.zeros(0))
-        shape = MeshObject(tmp)
-        t1 = time.perf_counter()
-        say(f"checking {len(poses)} grasps in physics")
-        held = verify_grasps(shape, poses, widths)
-        t_verify = time.perf_counter() - t1
-        if held.sum() < MIN_GRASPS:
-            raise ObjectError(f"{path}: only {int(held.sum())} of {len(poses)} checked grasps held in physics "
-                              f"(at least {MIN_GRASPS} needed)")
-        np.savez(tmp / "grasps.npz", poses=poses[held], widths=widths[held])
+        held, timing["verify"] = _keep_held(tmp, poses, widths, path, say)
         manifest["grasps"] = {"candidates": candidates, "checked": len(poses), "held": int(held.sum())}
-        timing = {"repair": t_repair, "decompose": t_decomp, "sample": t_sample, "verify": t_verify}
         if preview:
             from kgn_bench.viz.objects import draw_object
 

@@ -11,7 +11,7 @@ with half-angle ``θ = friction_cone_deg`` (a margin under MuJoCo's ``atan μ`` 
 Each pair gives ``approaches`` grasps about its closing axis: the grasp origin at the contact midpoint
 ``c = (p + q)/2``, the closing axis ``z = a``, the approach ``x = cos β·u + sin β·(a × u)`` for evenly spaced
 β (from a random phase) and a unit ``u ⟂ a``. Grasps whose gripper, swept over its approach and its closing,
-would run into the object itself are dropped (``shapes.household.gripper_sweep_free``). Everything is in the
+would run into the object itself are dropped (``shapes.household.families.gripper_sweep_free``). Everything is in the
 mesh's (object) frame.
 """
 
@@ -24,7 +24,7 @@ import trimesh
 
 from kgn_bench.geometry import frame_from_xz
 from kgn_bench.gripper import GRIPPER
-from kgn_bench.shapes.household import PINCH_CLEARANCE, gripper_sweep_free
+from kgn_bench.shapes.household.families import PINCH_CLEARANCE, gripper_sweep_free
 
 __all__ = ["SamplingConfig", "antipodal_accepts", "antipodal_pairs", "diverse_subset", "sample_antipodal_grasps"]
 

@@ -136,11 +136,10 @@ class MeshObject(Shape):
 
     @classmethod
     def from_dims(cls, dims: dict) -> Shape:
-        from kgn_bench.shapes.library import load_object
-
-        if not isinstance(dims, dict) or not isinstance(dims.get("object"), str):
-            raise ValueError(f"an imported object needs dims {{'object': NAME}}, got {dims!r}")
-        return load_object(dims["object"])
+        # The library (shapes.library) finds folders by name and sits above this module, so a name is
+        # resolved there, never here: this module imports nothing of the library.
+        raise TypeError("a MeshObject is loaded from its folder by name (shapes.shape_from_dims or "
+                        "shapes.library.load_object), not built from dims")
 
     def dims(self) -> dict:
         return {"object": self.object_name}

@@ -29,10 +29,10 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from kgn_bench.execution import GRASP_DEPTH as APPROACH_DEPTH
 from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.base import Shape
-from kgn_bench.shapes.household import APPROACH_DEPTH
 from kgn_bench.sim.robot import build_gripper
 from kgn_bench.sim.scene import PhysicsError, SceneObject, build_mjcf
 

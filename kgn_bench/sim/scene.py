@@ -20,10 +20,10 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from kgn_bench.camera import REALSENSE, Intrinsics, convert_camera_frame
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from kgn_bench.shapes.base import GeomSpec, Shape
-from kgn_bench.sim.camera import REALSENSE, Intrinsics, convert_camera_frame
 
 __all__ = ["GROUP_ROBOT", "GROUP_VISUAL", "TABLE_HALF_SIZE", "TABLE_THICKNESS", "PhysicsError", "Scene", "SceneObject"]
 

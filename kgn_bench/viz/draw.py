@@ -10,6 +10,7 @@ import numpy as np
 from kgn_bench.data.format import SceneAnnotation, read_view, scene_dir
 from kgn_bench.geometry import invert_pose, project
 from kgn_bench.grasp import KEYPOINT_LINKS, keypoints_in_frame
+from kgn_bench.types import Observation
 from kgn_bench.viz.images import PALETTE_RGB
 
 __all__ = ["PALETTE", "colorize_depth", "draw_grasps", "draw_keypoints", "show_predictions", "show_view"]
@@ -60,8 +61,6 @@ def show_predictions(detector, root: Path, scene: int, view: int) -> np.ndarray:
     """Side by side: a detector's predicted keypoint boxes on the view's RGB (coloured by score) and the
     view's collision-free ground truth (0.1 m boxes, one colour per object). ``detector`` follows the
     Detector protocol and returns candidates with keypoints."""
-    from kgn_bench.detectors.base import Observation
-
     ann = SceneAnnotation.load(scene_dir(root, scene) / "scene.json")
     rgbd = read_view(scene_dir(root, scene), view)
     obs = Observation(rgbd.rgb, rgbd.depth, ann.intrinsics, ann.camera_poses[view])

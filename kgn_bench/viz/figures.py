@@ -12,6 +12,7 @@ import os
 import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ from matplotlib.figure import Figure
 
 from kgn_bench.io import atomic_write
 
-__all__ = ["DPI", "Line", "Panel", "bar_chart", "line_panels", "save_figure", "training_figure"]
+__all__ = ["DPI", "Line", "Panel", "bar_chart", "line_panels", "save_figure", "save_training_curves", "training_figure"]
 
 DPI = 150
 """Resolution of saved figures."""
@@ -145,3 +146,19 @@ def training_figure(history: Sequence[dict[str, Any]], title: str) -> Figure:
         right.legend(fontsize=5, ncols=3)
     fig.suptitle(title, fontsize=10)
     return fig
+
+
+def save_training_curves(weights: str | os.PathLike[str]) -> Path | None:
+    """Draw the training curves of shipped weights ``<dir>/<name>.pt`` (``model.checkpoint.export_weights``)
+    to ``<dir>/<name>_training.png``, the image their model card links, titled ``<name>: <training config>``;
+    returns its path, or None (nothing written) when the weights carry no history."""
+    from kgn_bench.model.checkpoint import load_checkpoint
+
+    weights = Path(weights)
+    data = load_checkpoint(weights)
+    if not data.get("history"):
+        return None
+    name = weights.stem
+    png = weights.parent / f"{name}_training.png"
+    save_figure(training_figure(data["history"], f"{name}: {data.get('train', {}).get('name', '')}"), png)
+    return png

@@ -157,28 +157,12 @@ def perf_backends(task_path: str | Path, detector: str = "kgnv2", workers: int =
     return "\n".join(lines)
 
 
-def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, frames: int = 20,
-                  threads: int = 2, data: Path | None = None) -> str:
-    """Detector frames per second at 640×480 on ``threads`` torch threads (medians over ``frames`` frames after
-    one warm-up). ``variant`` is a learned variant (then preprocessing, network, decode (peaks, filters,
-    translation) and PnP are timed separately) or any other non-privileged detector name (timed as a whole).
-
-    Frames come from the test split of ``data`` when given, else from freshly generated multi-object
-    scenes (one seeded 4-scene dataset in a temporary folder).
-    """
-
-    import numpy as np
-    import torch
-
+def _frames(data: Path | None, frames: int) -> list:
+    """The first ``frames + 1`` views (one warm-up) of the test split of ``data``, or of a seeded 4-scene
+    multi-object dataset generated in a temporary folder, as ``Observation``s (camera pose ``T_world_cam``)."""
     from kgn_bench.data.format import SceneAnnotation, read_split, read_view, scene_dir
-    from kgn_bench.detectors import LEARNED, make_detector
-    from kgn_bench.detectors.base import Observation
-    from kgn_bench.detectors.kgn import KGNDetector
+    from kgn_bench.types import Observation
 
-    torch.set_num_threads(threads)
-    det = KGNDetector(variant, weights) if variant in LEARNED else make_detector(variant, weights)
-    if det.privileged:
-        raise ValueError(f"detector {variant!r} is privileged (it needs the simulator): time it with perf run")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(data) if data else Path(tmp) / "ds"
         if data is None:
@@ -196,7 +180,12 @@ def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, fra
                     break
             if len(observations) >= frames + 1:
                 break
-    learned = isinstance(det, KGNDetector)
+    return observations
+
+
+def _time_frames(det, observations: list, learned: bool) -> tuple[dict[str, list[float]], list[int]]:
+    """Seconds per frame after the first (a warm-up): per stage (the detector's own ``timing``) for a learned
+    detector, of the whole ``detect`` call otherwise; and the candidates per frame."""
     times: dict[str, list[float]] = {k: [] for k in (("preprocess", "network", "decode", "pnp") if learned
                                                      else ("detect",))}
     counts = []
@@ -210,6 +199,32 @@ def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, fra
         for k in times:
             times[k].append(det.timing.get(k, 0.0) if learned else elapsed)
         counts.append(len(cands))
+    return times, counts
+
+
+def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, frames: int = 20,
+                  threads: int = 2, data: Path | None = None) -> str:
+    """Detector frames per second at 640×480 on ``threads`` torch threads (medians over ``frames`` frames after
+    one warm-up). ``variant`` is a learned variant (then preprocessing, network, decode (peaks, filters,
+    translation) and PnP are timed separately) or any other non-privileged detector name (timed as a whole).
+
+    Frames come from the test split of ``data`` when given, else from freshly generated multi-object
+    scenes (one seeded 4-scene dataset in a temporary folder).
+    """
+
+    import numpy as np
+    import torch
+
+    from kgn_bench.detectors import LEARNED, make_detector
+    from kgn_bench.detectors.kgn import KGNDetector
+
+    torch.set_num_threads(threads)
+    det = KGNDetector(variant, weights) if variant in LEARNED else make_detector(variant, weights)
+    if det.privileged:
+        raise ValueError(f"detector {variant!r} is privileged (it needs the simulator): time it with perf run")
+    observations = _frames(data, frames)
+    learned = isinstance(det, KGNDetector)
+    times, counts = _time_frames(det, observations, learned)
     ms = {k: 1e3 * float(np.median(v)) for k, v in times.items()}
     total = sum(ms.values())
     about = (f"({det.model.meta.get('parameters', 'n/a')} parameters), input scale "

@@ -5,10 +5,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from kgn_bench.data.training import AugmentConfig, GraspViewDataset, camera_frame_grasps
 from kgn_bench.model.preprocess import prepare
 from kgn_bench.model.targets import apply_affine, project_keypoints
 from kgn_bench.model.variants import get_variant
+from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset, camera_frame_grasps
 
 V2 = get_variant("kgnv2")
 
