@@ -28,7 +28,7 @@ demo: setup
 	$(BIN)/kgn-bench data show runs/ps_multi_demo --scene 0 --view 0 --out runs/ps_multi_demo/preview.png
 
 test: setup
-	$(BIN)/ruff check kgn_bench tests
+	$(BIN)/ruff check kgn_bench tests docs/hooks
 	$(BIN)/pytest -q
 
 # The regression checks that the test suite runs (tests/test_ci_regression.py), with their tables printed: the
@@ -62,7 +62,7 @@ lock:
 	rm -rf .lock-venv
 	$(PYTHON) -m venv .lock-venv
 	.lock-venv/bin/pip install --upgrade pip
-	.lock-venv/bin/pip install 'torch==2.13.0' -e '.[test,ray]'
+	.lock-venv/bin/pip install 'torch==2.13.0' -e '.[test,ray,docs]'
 	{ sed -n '/^#/p' constraints.txt; .lock-venv/bin/pip freeze --exclude-editable | grep -v '^#' \
 	  | sed 's/^torch==2.13.0+cpu$$/torch==2.13.0/'; } > constraints.txt.new
 	mv constraints.txt.new constraints.txt
@@ -82,4 +82,4 @@ perf: setup
 	$(BIN)/kgn-bench perf run tasks/single_object.toml --trials 5 --workers 2
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache build dist
+	rm -rf $(VENV) runs site .pytest_cache build dist
