@@ -1,4 +1,4 @@
-"""The CI regression check (README "Regression check"): the fixed-seed clearance task (24 scenes, sized for
+"""The CI regression check (docs/reproducibility.md): the fixed-seed clearance task (24 scenes, sized for
 the statistical test) and the fixed-seed pile task in raw (detector-only) mode, each with the shipped kgnv2
 weights and with the oracle, against results/ci_baseline.json and results/ci_baseline_pile.json
 (`kgn_bench.bench.check`). In the environment the baselines were written in (the portable kernel set, the
