@@ -1,0 +1,42 @@
+"""VGN's network: its published size, its output maps, and that it learns a voxel's label."""
+
+import pytest
+import torch
+
+from kgn_bench.model.vgn_network import VGNNet
+
+
+def test_parameter_count_is_vgns():
+    assert sum(p.numel() for p in VGNNet().parameters()) == 313_238
+
+
+def test_outputs_cover_the_grid():
+    torch.manual_seed(0)
+    out = VGNNet()(torch.rand(2, 1, 40, 40, 40))
+    assert out.quality.shape == out.width.shape == (2, 1, 40, 40, 40)
+    assert out.rotation.shape == (2, 4, 40, 40, 40)
+    assert 0 <= out.quality.min() and out.quality.max() <= 1
+    torch.testing.assert_close(out.rotation.norm(dim=1), torch.ones(2, 40, 40, 40))
+
+
+def test_a_grid_not_divisible_by_eight_is_refused():
+    with pytest.raises(ValueError, match="divisible by 8"):
+        VGNNet()(torch.rand(1, 1, 20, 20, 20))
+
+
+def test_it_learns_which_voxel_holds():
+    """Fifty Adam steps on one 16³ grid separate a positive voxel from a negative one."""
+    torch.manual_seed(0)
+    net = VGNNet()
+    x = torch.zeros(1, 1, 16, 16, 16)
+    x[0, 0, 4:8, 4:8, 0:4] = 0.5  # a block of surface in one corner
+    opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+    for _ in range(50):
+        q = net(x).quality[0, 0]
+        loss = torch.nn.functional.binary_cross_entropy(torch.stack([q[5, 5, 2], q[12, 12, 12]]),
+                                                        torch.tensor([1.0, 0.0]))
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    q = net(x).quality[0, 0].detach()
+    assert q[5, 5, 2] > 0.8 and q[12, 12, 12] < 0.2
