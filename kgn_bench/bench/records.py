@@ -16,6 +16,8 @@ that exists. The format version is not written into the records (their bytes sta
    and ``width`` (m) after ``score``; read from an older record both are None (not recorded).
 
 A record read in an older shape writes back in that shape (``version``), so its fingerprint is unchanged.
+Shapes 2 and 3 are the same outside pile and packed records, so a record of either reads as version 3; an
+attempt without ``grasp`` reads as version 3 too (attempts did not change before version 4).
 Scores, grasps and widths are as ``run_trial`` rounded them (6 decimals); ``sim_time`` is simulated seconds
 (3 decimals); ``timing`` is wall seconds per stage (4 decimals), the only part that varies between runs.
 """

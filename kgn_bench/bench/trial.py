@@ -130,7 +130,7 @@ ARRANGEMENTS: dict[str, Callable[[Scene, np.random.Generator], None]] = {
 """How a protocol puts its objects on the table (``Protocol.arrangement``), from the trial's generator."""
 
 
-def _workcell(task: TaskConfig):
+def _workcell(task: TaskConfig) -> Callable[..., None]:
     """The MJCF extension of the task's work cell: the arm, bin and camera, with the pile box if the protocol
     drops its objects into one."""
     return _pile_workcell if task.spec.pile_box else add_workcell
