@@ -294,7 +294,8 @@ def _cmd_check(args) -> int:
 
 
 def _cmd_replay(args) -> int:
-    from kgn_bench.viz.recording import RecordingError, copy_recording, open_viewer, serve_web
+    from kgn_bench.viz.recording import RecordingError
+    from kgn_bench.viz.rerun_viewer import copy_recording, open_viewer, serve_web
 
     path = args.run / "recording.rrd" if args.run.is_dir() else args.run
     if not path.is_file():

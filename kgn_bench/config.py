@@ -19,6 +19,8 @@ import tomllib
 
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.execution import GRASP_DEPTH, PREGRASP_DISTANCE
+from kgn_bench.protocols import CLEARANCE_PROTOCOLS, CLUTTER_PROTOCOLS, Protocol
+from kgn_bench.protocols import PROTOCOLS as PROTOCOL_TABLE
 from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
 from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
@@ -26,11 +28,8 @@ __all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "PROTOCOL
            "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig", "SelectorConfig", "TaskConfig",
            "apply_override", "load_task", "parse_section", "read_toml", "resolve_task", "task_from_dict"]
 
-PROTOCOLS = ("single_object", "multi_object", "pile", "packed")
-CLEARANCE_PROTOCOLS = ("multi_object", "pile", "packed")
-"""Protocols whose trial is a round of attempts on several objects (success rate and clear rate)."""
-CLUTTER_PROTOCOLS = ("pile", "packed")
-"""VGN/GIGA's clutter rounds (``sim.placement``): the hard tier."""
+PROTOCOLS = tuple(PROTOCOL_TABLE)
+"""The protocol names (``kgn_bench.protocols.PROTOCOLS`` describes each)."""
 SCORES = ("confidence_minus_error", "paper_literal")
 SELECTOR_MODES = ("assisted", "raw")
 RAW_SELECTOR = {"approach_search": 0.0, "closing_search": 0.0, "centre_range": 0.0, "level_deg": 0.0,
@@ -191,13 +190,19 @@ class TaskConfig:
     resources: ResourceConfig = field(default_factory=ResourceConfig)
 
     @property
+    def spec(self) -> Protocol:
+        """The description of the task's protocol (``kgn_bench.protocols``)."""
+        return PROTOCOL_TABLE[self.protocol]
+
+    @property
     def clearance(self) -> bool:
-        """Whether a trial is a round of attempts on several objects (``CLEARANCE_PROTOCOLS``)."""
-        return self.protocol in CLEARANCE_PROTOCOLS
+        """Whether a trial is a round of attempts on several objects (``Protocol.clearance``)."""
+        return self.spec.clearance
 
     @property
     def n_trials(self) -> int:
-        return self.trials * len(self.objects) if self.protocol == "single_object" else self.trials
+        """Trials of the task: ``trials`` per object of the set for a one-object protocol, else ``trials``."""
+        return self.trials * len(self.objects) if self.spec.one_object else self.trials
 
     def with_overrides(self, trials: int | None = None, seed: int | None = None) -> TaskConfig:
         return replace(self, trials=self.trials if trials is None else trials, seed=self.seed if seed is None else seed)
@@ -325,8 +330,8 @@ def load_task(path: str | Path) -> TaskConfig:
         if key not in allowed:
             raise ConfigError(f"{path}: [task] unknown key {key!r} (known: {', '.join(allowed)})")
         task[key] = _coerce(f"{path} [task]", key, task[key], type(allowed[key]))
-    if task["protocol"] not in PROTOCOLS:
-        raise ConfigError(f"{path}: protocol must be one of {', '.join(PROTOCOLS)}, got {task['protocol']!r}")
+    if task["protocol"] not in PROTOCOL_TABLE:
+        raise ConfigError(f"{path}: protocol must be one of {', '.join(PROTOCOL_TABLE)}, got {task['protocol']!r}")
     objects = dict(raw.get("objects", {}))
     names = objects.pop("set", list(PRIMITIVES))
     per_scene = objects.pop("per_scene", 5)
@@ -385,8 +390,8 @@ def task_from_dict(data: Any, where: str) -> TaskConfig:
     for key in ("name", "protocol"):
         if key not in kwargs:
             raise ConfigError(f"{where}: the task config needs {key!r}")
-    if kwargs["protocol"] not in PROTOCOLS:
-        raise ConfigError(f"{where}: protocol must be one of {', '.join(PROTOCOLS)}, got {kwargs['protocol']!r}")
+    if kwargs["protocol"] not in PROTOCOL_TABLE:
+        raise ConfigError(f"{where}: protocol must be one of {', '.join(PROTOCOL_TABLE)}, got {kwargs['protocol']!r}")
     cfg = TaskConfig(**kwargs)
     validate(cfg, where)
     return cfg

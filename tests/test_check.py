@@ -23,9 +23,13 @@ ENV = environment()
 
 
 def _records(k, n, score=0.5):
-    """``n`` single-attempt trial records, the first ``k`` successful."""
-    return [{"index": i, "attempts": [{"object": "cuboid", "success": i < k, "reason": None if i < k else "missed",
-                                       "score": score}], "timing": {"detect": 0.1 * i}} for i in range(n)]
+    """``n`` single-attempt trial records (JSON form), the first ``k`` successful."""
+    return [{"index": i, "protocol": "single_object", "objects": ["cuboid"], "placed": 1, "placed_objects": ["cuboid"],
+             "removed": int(i < k),
+             "attempts": [{"success": i < k, "reason": None if i < k else "missed", "object": "cuboid",
+                           "candidates": 3, "selected": 0, "score": score, "grasp": [0.0] * 7, "width": 0.05,
+                           "rejected": {}, "detail": "", "sim_time": 1.0}],
+             "timing": {"detect": 0.1 * i}} for i in range(n)]
 
 
 def _run_dir(path, k, n, detector="oracle", seed=0, env=None, score=0.5):
@@ -158,6 +162,9 @@ def test_cli_check_bad_inputs(tmp_path, capsys):
     assert main(["check", str(run), "--baseline", str(baseline)]) == 2
     assert "share no rate" in capsys.readouterr().err
     (run / "trials.jsonl").write_text('{"index": 0}\n')
+    assert main(["check", str(run), "--baseline", str(baseline)]) == 2
+    assert "line 1 is not a trial record (a trial record has no protocol, objects" in capsys.readouterr().err
+    (run / "trials.jsonl").write_text(json.dumps(_records(1, 1)[0]) + "\n")
     assert main(["check", str(run), "--baseline", str(baseline)]) == 2
     assert "is not finished (1 of 6 trials)" in capsys.readouterr().err
     (run / "summary.json").write_text("{")

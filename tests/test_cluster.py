@@ -68,7 +68,7 @@ def _free_port() -> int:
 
 
 def _records(out: Path) -> list[dict]:
-    return sorted(({k: v for k, v in r.items() if k != "timing"} for r in read_trials(out / "trials.jsonl")),
+    return sorted(({k: v for k, v in r.to_json().items() if k != "timing"} for r in read_trials(out / "trials.jsonl")),
                   key=lambda r: r["index"])
 
 

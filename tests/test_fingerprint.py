@@ -3,12 +3,16 @@
 import copy
 
 from kgn_bench.bench.fingerprint import Fingerprint, canonical_sha256, compare_trials, fingerprint
+from kgn_bench.bench.records import TrialRecord
 
 
 def _record(index, scores=(0.7, 0.6), reasons=(None, None), timing=1.0):
-    attempts = [{"object": f"obj{k}", "success": r is None, "reason": r, "score": s, "candidates": 10}
+    attempts = [{"success": r is None, "reason": r, "object": f"obj{k}", "candidates": 10, "selected": 0,
+                 "score": s, "grasp": None, "width": None, "rejected": {}, "detail": "", "sim_time": 0.5}
                 for k, (s, r) in enumerate(zip(scores, reasons, strict=True))]
-    return {"index": index, "attempts": attempts, "removed": 2, "timing": {"detect": timing}}
+    return TrialRecord.from_json({"index": index, "protocol": "multi_object", "objects": ["obj0", "obj1"],
+                                  "placed": 2, "placed_objects": ["obj0", "obj1"], "removed": 2,
+                                  "attempts": attempts, "timing": {"detect": timing}})
 
 
 RUN = {"task": "ci", "detector": "kgnv2", "seed": 0, "trials": 2, "commit": "abc",
@@ -36,7 +40,7 @@ def test_a_changed_score_outcome_or_field_is_told_per_trial():
     assert lines == ["trial 0: attempt 2: obj1: success (score 0.600000) → obj1: success (score 0.610000)",
                      "trial 1: attempt 2: obj1: success (score 0.600000) → obj1: missed (score 0.600000)"]
     other = _record(0)
-    other["removed"] = 1
+    other.removed = 1
     assert compare_trials(base, fingerprint(RUN, [other, _record(1)])) == [
         "trial 0: same outcomes and scores, other fields of the record differ"]
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import subprocess
 from pathlib import Path
 
@@ -18,19 +17,8 @@ from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.primitives import Cuboid
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.scene import Scene, SceneObject
-from kgn_bench.viz.recording import (
-    Recorder,
-    RecordingError,
-    copy_recording,
-    gripper_sketch,
-    merge_recordings,
-    open_viewer,
-    rerun_command,
-    sanitize_path_part,
-    score_colors,
-    serve_web,
-    web_viewer_url,
-)
+from kgn_bench.viz.recording import Recorder, gripper_sketch, sanitize_path_part, score_colors
+from kgn_bench.viz.rerun_viewer import rerun_command
 
 EXPECTED_PATHS = {
     "/world/camera",
@@ -106,27 +94,6 @@ def test_recording_verifies_and_holds_every_entity(trials):
     assert "/world/bodies/proxy" not in recordings["trial_0"]  # hidden geom group 5
 
 
-def test_merge_keeps_each_trial_as_its_own_recording(trials, tmp_path):
-    out = tmp_path / "merged" / "all.rrd"
-    merge_recordings(trials, out)
-    _verify(out)
-    recordings = _recordings(out)
-    assert set(recordings) == {"trial_0", "trial_1"}
-    for paths in recordings.values():
-        assert EXPECTED_PATHS <= paths
-    assert [p.name for p in out.parent.iterdir()] == ["all.rrd"]  # no temporary file left behind
-
-
-def test_merge_names_a_missing_or_corrupt_input(trials, tmp_path):
-    with pytest.raises(FileNotFoundError, match=r"nope\.rrd"):
-        merge_recordings([trials[0], tmp_path / "nope.rrd"], tmp_path / "out.rrd")
-    bad = tmp_path / "corrupt.rrd"
-    bad.write_bytes(b"this is not an rrd file" * 10)
-    with pytest.raises(RuntimeError, match=r"corrupt\.rrd"):
-        merge_recordings([bad], tmp_path / "out.rrd")
-    assert not (tmp_path / "out.rrd").exists()
-
-
 def test_state_needs_geometry_and_closed_recorder_refuses(tmp_path):
     scene = _scene()
     rec = Recorder(tmp_path / "r.rrd", "r")
@@ -154,8 +121,6 @@ def test_state_needs_geometry_and_closed_recorder_refuses(tmp_path):
               if ch.entity_path == "/world/bodies/object_0"]
     logged = np.concatenate([ch.to_record_batch().column("sim_time").cast("int64").to_numpy() for ch in chunks])
     np.testing.assert_allclose(np.sort(logged), np.array(times) * 1e9, atol=1.0)  # seconds → ns
-    with pytest.raises(FileNotFoundError, match="missing"):
-        open_viewer(tmp_path / "missing.rrd")
 
 
 def test_gripper_sketch_identity_pose():
@@ -195,56 +160,3 @@ def test_score_colors_and_path_parts():
     with pytest.raises(ValueError):
         score_colors(np.array([0.0, np.nan]))
     assert sanitize_path_part("robot/link 3") == "robot_link_3"
-
-
-def _free_port_pair() -> int:
-    import socket
-
-    for port in range(19090, 19990, 2):
-        with socket.socket() as a, socket.socket() as b:
-            if a.connect_ex(("127.0.0.1", port)) != 0 and b.connect_ex(("127.0.0.1", port + 1)) != 0:
-                return port
-    raise RuntimeError("no free port pair")
-
-
-def test_replay_web_serves_the_viewer_on_localhost(trials, tmp_path):
-    import signal
-    import subprocess
-    import sys
-    import urllib.request
-
-    port = _free_port_pair()
-    cmd = [sys.executable, "-m", "kgn_bench.cli", "replay", str(trials[0]), "--web", "--port", str(port)]
-    # A shell without job control starts background jobs with SIGINT ignored, and the child would inherit that
-    # (`pytest &`); restore the default so the child's Python turns Ctrl-C into KeyboardInterrupt as at a terminal.
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        line = proc.stdout.readline()
-        assert line.strip() == f"serving {trials[0]}: open {web_viewer_url(port)}"
-        page = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=10).read().decode()
-        assert "rerun" in page.lower()
-        with pytest.raises(RecordingError, match=f"port {port} on 127.0.0.1 is in use"):
-            serve_web(trials[0], port=port, wait=False)
-    finally:
-        proc.send_signal(2)  # Ctrl-C: the command stops its server
-        try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, 9)
-            proc.wait()
-            pytest.fail("replay --web did not stop within 30 s of Ctrl-C")
-    assert proc.returncode == 0
-    import socket
-
-    with socket.socket() as s:
-        assert s.connect_ex(("127.0.0.1", port)) != 0  # nothing left listening
-
-
-def test_copy_recording_is_atomic_and_names_a_bad_destination(trials, tmp_path):
-    from kgn_bench.errors import OutputError
-
-    copy_recording(trials[0], tmp_path / "c.rrd")
-    assert (tmp_path / "c.rrd").read_bytes() == trials[0].read_bytes()
-    with pytest.raises(OutputError, match=r"^cannot write /sys/c\.rrd: "):
-        copy_recording(trials[0], Path("/sys/c.rrd"))

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from kgn_bench.bench.records import TrialRecord
 from kgn_bench.bench.runner import RunError, read_trials, run_benchmark
 from kgn_bench.bench.stats import summarise, summary_markdown
 from kgn_bench.bench.trial import TIMING_KEYS
@@ -33,7 +34,7 @@ def first_run(task, tmp_path_factory):
 
 def _records(out):
     return sorted(
-        ({k: v for k, v in r.items() if k != "timing"} for r in read_trials(out / "trials.jsonl")),
+        ({k: v for k, v in r.to_json().items() if k != "timing"} for r in read_trials(out / "trials.jsonl")),
         key=lambda r: r["index"],
     )
 
@@ -67,7 +68,8 @@ def test_run_writes_trials_and_summaries(task, first_run):
     assert {k: summary[k] for k in ("task", "protocol", "detector", "seed")} == {
         "task": "ci_oracle", "protocol": "single_object", "detector": "oracle", "seed": 0}  # fmt: skip
     assert summary["trials"] == 2 and summary["attempts"] == 2
-    assert summary == summarise(records, {k: summary[k] for k in ("task", "protocol", "detector", "seed")})
+    assert summary == summarise([TrialRecord.from_json(r) for r in records],
+                                {k: summary[k] for k in ("task", "protocol", "detector", "seed")})
     assert summary["rates"]["success"]["k"] >= 1  # the oracle picks up at least one of a box and a ball
     assert set(summary["per_object"]) == {"cuboid", "sphere"}
     assert (out / "summary.md").read_text() == summary_markdown(summary)
@@ -110,7 +112,7 @@ def test_a_trial_cut_short_by_a_kill_is_rerun(first_run, task, tmp_path):
     result = run_benchmark(task, "oracle", out, workers=1, progress=False)
     assert result.ran == 1
     records = read_trials(out / "trials.jsonl")
-    assert [r["index"] for r in records] == [json.loads(lines[0])["index"], killed_index]
+    assert [r.index for r in records] == [json.loads(lines[0])["index"], killed_index]
     assert (out / "summary.json").read_text() == (first_run[0] / "summary.json").read_text()
     assert _records(out) == _records(first_run[0])
 
@@ -120,14 +122,14 @@ def test_read_trials_drops_a_cut_short_last_line(first_run, tmp_path):
     lines = (first_run[0] / "trials.jsonl").read_text().splitlines(keepends=True)
     path.write_text(lines[0] + lines[1][:40])
     records = read_trials(path)
-    assert [r["index"] for r in records] == [json.loads(lines[0])["index"]]
+    assert [r.index for r in records] == [json.loads(lines[0])["index"]]
     assert path.read_text() == lines[0]  # the partial line is removed from the file
     # a complete last line without its newline is also treated as cut short (it may be incomplete JSON)
     path.write_text(lines[0] + lines[1].rstrip("\n"))
     assert len(read_trials(path)) == 1 and path.read_text() == lines[0]
     # a duplicate (a trial finished twice) counts once; a bad line in the middle is corruption
     path.write_text(lines[0] + lines[1] + lines[0])
-    assert sorted(r["index"] for r in read_trials(path)) == [0, 1]
+    assert sorted(r.index for r in read_trials(path)) == [0, 1]
     path.write_text(lines[0] + "{oops\n" + lines[1])
     with pytest.raises(RunError, match="line 2"):
         read_trials(path)
@@ -172,19 +174,20 @@ def test_clearance_scene(tmp_path):
     task = replace(load_task(TASKS / "multi_object.toml"), objects_per_scene=2, trials=1)
     result = run_benchmark(task, "oracle", tmp_path / "multi", progress=False)
     (record,) = read_trials(tmp_path / "multi" / "trials.jsonl")
-    assert record["protocol"] == "multi_object" and len(record["objects"]) == 2
-    assert set(record["objects"]) <= set(task.objects)
-    assert record["placed"] == 2 and sorted(record["placed_objects"]) == sorted(record["objects"])
-    attempts = record["attempts"]
+    assert record.protocol == "multi_object" and len(record.objects) == 2
+    assert set(record.objects) <= set(task.objects)
+    assert record.placed == 2 and sorted(record.placed_objects) == sorted(record.objects)
+    assert record.fell_at_setup is None and "fallen" not in record.to_json()  # not a clutter round
+    attempts = record.attempts
     assert 1 <= len(attempts) <= task.execution.max_attempts_per_object * 2
-    assert record["removed"] == sum(a["success"] for a in attempts) <= 2
-    picked = [a["object"] for a in attempts if a["success"]]
+    assert record.removed == record.successes <= 2
+    picked = [a.object for a in attempts if a.success]
     assert len(set(picked)) == len(picked)  # an object removed is not picked again
     # it stops when the table is clear or after max_consecutive_failures failures in a row
-    failures_at_end = len(attempts) - max([i + 1 for i, a in enumerate(attempts) if a["success"]], default=0)
-    assert record["removed"] == 2 or failures_at_end == task.execution.max_consecutive_failures
+    failures_at_end = len(attempts) - max([i + 1 for i, a in enumerate(attempts) if a.success], default=0)
+    assert record.removed == 2 or failures_at_end == task.execution.max_consecutive_failures
     rates = result.summary["rates"]
-    assert rates["clear"]["n"] == 2 and rates["clear"]["k"] == record["removed"]
+    assert rates["clear"]["n"] == 2 and rates["clear"]["k"] == record.removed
     assert rates["success"]["n"] == len(attempts) and rates["scenes_cleared"]["n"] == 1
 
 
@@ -300,10 +303,9 @@ def test_a_faulty_detector_becomes_attempts_and_the_run_goes_on(tmp_path, bad_de
     records = read_trials(tmp_path / name / "trials.jsonl")
     failures = {k: v for k, v in result.summary["failures"].items() if v}
     assert len(records) == 2 and failures == {reason: 2}
-    assert all(r["attempts"][0]["detail"].endswith(detail) for r in records)
+    assert all(r.attempts[0].detail.endswith(detail) for r in records)
     if name == "Stretched":  # never executed: every candidate is counted as an invalid pose
-        assert all(r["attempts"][0]["rejected"]["invalid_pose"] == r["attempts"][0]["candidates"] > 0
-                   for r in records)
+        assert all(r.attempts[0].rejected["invalid_pose"] == r.attempts[0].candidates > 0 for r in records)
 
 
 def test_a_detector_that_cannot_be_built_stops_the_run_before_anything_is_written(tmp_path, bad_detectors, capsys):
@@ -328,9 +330,9 @@ def test_a_physics_fault_is_the_trials_physics_error_and_the_run_goes_on(tmp_pat
     p.write_text('[task]\nname = "two"\nprotocol = "single_object"\ntrials = 1\n'
                  '[objects]\nset = ["cuboid", "cylinder", "sphere"]\n')
     result = run_benchmark(load_task(p), "oracle", tmp_path / "run", progress=False)
-    records = sorted(read_trials(tmp_path / "run" / "trials.jsonl"), key=lambda r: r["index"])
-    assert [r["attempts"][0]["reason"] for r in records] == [None, "physics_error", None]
-    assert records[1]["attempts"][0]["detail"].startswith("no stable scene: MuJoCo stopped at t = 0.000 s: "
+    records = sorted(read_trials(tmp_path / "run" / "trials.jsonl"), key=lambda r: r.index)
+    assert [r.attempts[0].reason for r in records] == [None, "physics_error", None]
+    assert records[1].attempts[0].detail.startswith("no stable scene: MuJoCo stopped at t = 0.000 s: "
                                                           "mj_stackAlloc: out of memory")
     assert {k: v for k, v in result.summary["failures"].items() if v} == {"physics_error": 1}
 
@@ -376,7 +378,7 @@ def test_learned_detector_trials_are_identical_whatever_the_worker_count(tmp_pat
     records = {}
     for workers in (1, 2):
         run_benchmark(task, "kgnv2", tmp_path / f"w{workers}", workers=workers, progress=False)
-        records[workers] = sorted(({k: v for k, v in r.items() if k != "timing"}
+        records[workers] = sorted(({k: v for k, v in r.to_json().items() if k != "timing"}
                                    for r in read_trials(tmp_path / f"w{workers}" / "trials.jsonl")),
                                   key=lambda r: r["index"])
     assert len(records[1]) == 6 and records[1] == records[2]
@@ -428,15 +430,15 @@ def test_clutter_rounds_end_as_published_and_count_what_fell(tmp_path, protocol)
     task = replace(load_task(protocol), objects_per_scene=3, trials=2)
     result = run_benchmark(task, "oracle", tmp_path / protocol, progress=False)
     for record in read_trials(tmp_path / protocol / "trials.jsonl"):
-        assert record["protocol"] == protocol and len(record["objects"]) == 3
-        assert record["placed"] + record["fell_at_setup"] == 3
-        attempts = record["attempts"]
-        reasons = [a["reason"] for a in attempts]
+        assert record.protocol == protocol and len(record.objects) == 3
+        assert record.placed + record.fell_at_setup == 3
+        attempts = record.attempts
+        reasons = [a.reason for a in attempts]
         assert all(r not in ("no_candidate", "unreachable") for r in reasons[:-1])  # those end the round
-        tail = len(attempts) - max([i + 1 for i, a in enumerate(attempts) if a["success"]], default=0)
-        ended = (record["removed"] == record["placed"] or tail == 2 or reasons[-1] in ("no_candidate", "unreachable")
+        tail = len(attempts) - max([i + 1 for i, a in enumerate(attempts) if a.success], default=0)
+        ended = (record.removed == record.placed or tail == 2 or reasons[-1] in ("no_candidate", "unreachable")
                  or len(attempts) == task.execution.max_attempts_per_object * 3)
-        assert ended and record["removed"] + record["fallen"] <= record["placed"]
+        assert ended and record.removed + record.fallen <= record.placed
     summary = result.summary
     assert {"success", "clear", "scenes_cleared"} <= set(summary["rates"]) and "fallen" in summary
 
@@ -464,8 +466,8 @@ def test_a_round_removes_each_object_it_puts_in_the_bin_when_asked(tmp_path, mon
     task = replace(base, objects_per_scene=3, trials=1, execution=replace(base.execution, remove_placed=remove))
     run_benchmark(task, "oracle", tmp_path / "pile", progress=False)
     (record,) = read_trials(tmp_path / "pile" / "trials.jsonl")
-    picked = [record["objects"].index(a["object"]) for a in record["attempts"] if a["success"]]
-    assert record["removed"] >= 1 and record["fallen"] == 0  # removed objects are not counted as fallen
+    picked = [record.objects.index(a.object) for a in record.attempts if a.success]
+    assert record.removed >= 1 and record.fallen == 0  # removed objects are not counted as fallen
     assert retired == (picked if remove else [])
 
 

@@ -7,6 +7,7 @@ import random
 import pytest
 
 from kgn_bench.bench.attempt import FAILURE_REASONS
+from kgn_bench.bench.records import TrialRecord
 from kgn_bench.bench.selector import REJECTIONS
 from kgn_bench.bench.stats import Rate, summarise, summary_markdown, wilson_interval
 
@@ -60,7 +61,14 @@ def test_rate_dict_round_trip_and_text():
 
 
 def _attempt(success, reason=None, rejected=None, obj=None):
-    return {"success": success, "reason": None if success else reason, "rejected": rejected or {}, "object": obj}
+    """An attempt in the shape written before grasps were recorded (``records`` version 3)."""
+    return {"success": success, "reason": None if success else reason, "object": obj, "candidates": 0,
+            "selected": None, "score": None, "rejected": rejected or {}, "detail": "", "sim_time": 0.0}
+
+
+def _trials(dicts):
+    """Hand-built trials read as records (no timing; ``placed_objects`` where given, as in older records)."""
+    return [TrialRecord.from_json({**d, "timing": {}}) for d in dicts]
 
 
 SINGLE = [
@@ -75,6 +83,7 @@ SINGLE = [
     {"index": 4, "protocol": "single_object", "objects": ["ring"], "placed": 1, "removed": 0,
      "attempts": [_attempt(False, "no_candidate", {"enclosure": 5})]},
 ]  # fmt: skip
+SINGLE = _trials(SINGLE)
 RUN_SINGLE = {"task": "t", "protocol": "single_object", "detector": "oracle", "seed": 3}
 
 
@@ -107,6 +116,7 @@ MULTI = [
      "placed_objects": ["stick", "cylinder"],
      "attempts": [_attempt(True, obj="stick"), _attempt(True, obj="cylinder")]},
 ]  # fmt: skip
+MULTI = _trials(MULTI)
 
 
 def test_summarise_multi_object():
@@ -143,3 +153,23 @@ def test_summary_markdown_lists_rates_objects_and_failures():
     assert "| success | 60.0 % [23.1, 88.2] | 3 / 5 |" in md
     assert "| cuboid | 50.0 % [9.5, 90.5] | 1 / 2 |" in md
     assert "| missed | 1 |" in md and "| collision | 5 |" in md
+
+
+PILE = _trials([
+    {"index": 0, "protocol": "pile", "objects": ["cuboid", "ring", "stick"], "placed": 2,
+     "placed_objects": ["cuboid", "ring"], "removed": 1, "fell_at_setup": 1, "fallen": 0,
+     "attempts": [_attempt(True, obj="ring"), _attempt(False, "missed"), _attempt(False, "no_candidate")]},
+    {"index": 1, "protocol": "pile", "objects": ["sphere", "cylinder"], "placed": 2,
+     "placed_objects": ["sphere", "cylinder"], "removed": 2, "fell_at_setup": 0, "fallen": 1,
+     "attempts": [_attempt(True, obj="sphere"), _attempt(True, obj="cylinder")]},
+])  # fmt: skip
+
+
+def test_summarise_pile_counts_executed_grasps_and_fallen_objects():
+    s = summarise(PILE, {"task": "p", "protocol": "pile", "detector": "kgnv2", "seed": 0})
+    assert s["attempts"] == 4 and s["rates"]["success"] == Rate(3, 4).to_dict()  # no_candidate executed nothing
+    assert s["failures"]["no_candidate"] == 1 and s["failures"]["missed"] == 1
+    assert s["rates"]["clear"] == Rate(3, 4).to_dict() and s["rates"]["scenes_cleared"] == Rate(1, 2).to_dict()
+    assert (s["fell_at_setup"], s["fallen"]) == (1, 1)
+    assert s["per_object"]["cuboid"] == Rate(0, 1).to_dict() and "stick" not in s["per_object"]
+    assert "fallen" not in summarise(MULTI, {"task": "m", "protocol": "multi_object"})

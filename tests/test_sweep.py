@@ -47,7 +47,7 @@ def test_depth_noise_reaches_the_detector_and_is_seeded_per_trial(task):
     for strength in (0.0, 1.0, 1.0):
         spy = _Spy()
         record = run_trial(apply_override(task, "camera.depth_noise", str(strength)), 0, spy, ik)
-        assert record["attempts"][0]["reason"] == "no_candidate"
+        assert record.attempts[0].reason == "no_candidate"
         seen.setdefault(strength, []).append(spy.depths[0])
     clean, (noisy, again) = seen[0.0][0], seen[1.0]
     np.testing.assert_array_equal(noisy, again)  # same task, seed and trial: same noise

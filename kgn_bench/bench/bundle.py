@@ -33,6 +33,7 @@ from kgn_bench.io import atomic_write_text
 
 from .check import read_run
 from .fingerprint import canonical_sha256
+from .records import TrialRecord
 
 __all__ = ["ATTEMPT_COLUMNS", "FORMAT", "VERSION", "BundleError", "export_bundles", "is_bundle", "read_bundle"]
 
@@ -54,17 +55,18 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]", "_", name).strip(".") or "_"
 
 
-def _attempt_rows(records: list[dict[str, Any]]) -> str:
+def _attempt_rows(records: list[TrialRecord]) -> str:
+    """``ATTEMPT_COLUMNS`` of every attempt, trials in index order; the pose and width are empty where nothing
+    was executed or the record is older than them."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(ATTEMPT_COLUMNS)
-    for record in sorted(records, key=lambda r: r["index"]):
-        for k, a in enumerate(record.get("attempts", [])):
-            pose = a.get("grasp") or [""] * 7
-            width = a.get("width")
-            writer.writerow([record["index"], k, a.get("object") or "", *pose, "" if width is None else width,
-                             "" if a.get("score") is None else a["score"], int(bool(a.get("success"))),
-                             a.get("reason") or "", a.get("candidates", 0)])
+    for record in sorted(records, key=lambda r: r.index):
+        for k, a in enumerate(record.attempts):
+            pose = a.grasp or [""] * 7
+            writer.writerow([record.index, k, a.object or "", *pose, "" if a.width is None else a.width,
+                             "" if a.score is None else a.score, int(bool(a.success)), a.reason or "",
+                             a.candidates])
     return buf.getvalue()
 
 

@@ -30,6 +30,7 @@ from kgn_bench.io import atomic_write_text
 
 from .drop_test import ALPHA, drop_pvalue
 from .fingerprint import Fingerprint, compare_trials, fingerprint
+from .records import RecordError, TrialRecord
 from .stats import Rate
 
 __all__ = ["POWERED_ATTEMPTS", "CheckError", "CheckResult", "CheckRow", "baseline_for", "baseline_from_run",
@@ -78,7 +79,9 @@ def read_summary(run: Path) -> dict[str, Any]:
     return summary
 
 
-def _read_records(path: Path) -> list[dict[str, Any]]:
+def _read_records(path: Path) -> list[TrialRecord]:
+    """Every line of a finished run's ``trials.jsonl`` as a record (of any shape); ``CheckError`` naming the
+    first line that is not one."""
     if not path.is_file():
         raise CheckError(f"{path} not found: run the benchmark first")
     records = []
@@ -89,7 +92,10 @@ def _read_records(path: Path) -> list[dict[str, Any]]:
             raise CheckError(f"{path}: line {n} is not valid JSON") from None
         if not isinstance(record, dict) or not isinstance(record.get("index"), int):
             raise CheckError(f"{path}: line {n} is not a trial record")
-        records.append(record)
+        try:
+            records.append(TrialRecord.from_json(record))
+        except RecordError as e:
+            raise CheckError(f"{path}: line {n} is not a trial record ({e})") from None
     return records
 
 
@@ -100,7 +106,7 @@ class RunFiles:
 
     summary: dict[str, Any]
     run: dict[str, Any]
-    records: list[dict[str, Any]]
+    records: list[TrialRecord]
     fingerprint: Fingerprint
 
 

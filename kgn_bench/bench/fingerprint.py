@@ -16,6 +16,8 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
+from .records import TrialRecord
+
 __all__ = ["AttemptLine", "Fingerprint", "TrialPrint", "canonical_sha256", "compare_trials", "fingerprint"]
 
 VERSION = 1
@@ -80,17 +82,17 @@ class Fingerprint:
                    tuple(TrialPrint.from_dict(t) for t in d["trials"]))
 
 
-def _trial_print(record: dict[str, Any]) -> TrialPrint:
-    body = {k: v for k, v in record.items() if k != "timing"}
-    attempts = tuple(AttemptLine(a.get("object"), bool(a.get("success")), a.get("reason"), a.get("score"))
-                     for a in record.get("attempts", []))
-    return TrialPrint(int(record["index"]), canonical_sha256(body), attempts)
+def _trial_print(record: TrialRecord) -> TrialPrint:
+    """The digest of the record's JSON form (in the shape it was written in) less ``timing``, and its attempts."""
+    body = {k: v for k, v in record.to_json().items() if k != "timing"}
+    attempts = tuple(AttemptLine(a.object, bool(a.success), a.reason, a.score) for a in record.attempts)
+    return TrialPrint(int(record.index), canonical_sha256(body), attempts)
 
 
-def fingerprint(run: dict[str, Any], records: list[dict[str, Any]]) -> Fingerprint:
+def fingerprint(run: dict[str, Any], records: list[TrialRecord]) -> Fingerprint:
     """The fingerprint of a run from its ``run.json`` contents and its trial records."""
     identity = {k: v for k, v in run.items() if k not in ("commit", "environment")}
-    trials = tuple(_trial_print(r) for r in sorted(records, key=lambda r: r["index"]))
+    trials = tuple(_trial_print(r) for r in sorted(records, key=lambda r: r.index))
     return Fingerprint(canonical_sha256(identity), dict(run.get("environment") or {}), trials)
 
 

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from kgn_bench.config import CLUTTER_PROTOCOLS
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.io import atomic_write, atomic_write_text
+from kgn_bench.protocols import PROTOCOLS, protocol
 
 from .attempt import FAILURE_REASONS
 from .html_report import write_html
@@ -58,8 +58,8 @@ COLUMNS = (
 )
 """Known columns in display order; runs of other tasks get columns named after the task."""
 
-HARD_PROTOCOLS = CLUTTER_PROTOCOLS
-"""Protocols reported in the hard tier."""
+HARD_PROTOCOLS = tuple(name for name, p in PROTOCOLS.items() if p.report_tier == "hard")
+"""Protocols reported in the hard tier (``Protocol.report_tier``)."""
 
 GIGA = {"packed": {"GPD": (35.4, 30.7), "VGN": (74.5, 79.2), "GIGA": (83.5, 84.3)},
         "pile": {"GPD": (17.7, 9.2), "VGN": (60.7, 44.0), "GIGA": (69.3, 49.8)}}
@@ -188,33 +188,54 @@ def _detectors(summaries: list[dict[str, Any]]) -> list[str]:
     return [d for d in DETECTOR_ORDER if d in names] + sorted(names - set(DETECTOR_ORDER))
 
 
-def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
-                 viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None = None) -> tuple[str, dict[str, Any]]:
-    """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png,html}. ``viewpoints``
-    (``benchmark.run_plan``: name → (study, sweep points per detector)) adds the viewpoint study: its
-    tables, and its plots copied to out/viewpoints_<name>.png."""
-    if not summaries:
-        raise ReportError("no runs to report")
+def _is_hard(summary: dict[str, Any]) -> bool:
+    """Whether a run goes to the hard tier (its protocol's ``report_tier``)."""
+    return protocol(summary.get("protocol")).report_tier == "hard"
+
+
+def _cells(summaries: list[dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
+    """The runs by (detector, task); ``ReportError`` for two runs of one cell."""
     cells: dict[tuple[str, str], dict[str, Any]] = {}
     for s in summaries:
         key = (s["detector"], s["task"])
         if key in cells:
             raise ReportError(f"two runs of {s['task']} with {s['detector']}: {cells[key]['run']} and {s['run']}")
         cells[key] = s
-    hard = [s for s in summaries if s.get("protocol") in HARD_PROTOCOLS]
-    columns = _columns([s for s in summaries if s.get("protocol") not in HARD_PROTOCOLS])
-    hard_columns = _columns(hard)
-    detectors = _detectors(summaries)
+    return cells
 
-    def rate(det: str, col: Column) -> Rate | None:
-        s = cells.get((det, col.task))
+
+@dataclass(frozen=True)
+class _Layout:
+    """What the report shows: the runs by (detector, task), the hard-tier runs, the main and hard-tier columns,
+    and the detectors in display order."""
+
+    cells: dict[tuple[str, str], dict[str, Any]]
+    hard: list[dict[str, Any]]
+    columns: list[Column]
+    hard_columns: list[Column]
+    detectors: list[str]
+
+    def rate(self, det: str, col: Column) -> Rate | None:
+        """The rate of column ``col`` of ``det``'s run (None if there is no such run or rate)."""
+        s = self.cells.get((det, col.task))
         return Rate.from_dict(s["rates"][col.rate]) if s and col.rate in s["rates"] else None
 
+
+def _layout(summaries: list[dict[str, Any]]) -> _Layout:
+    cells = _cells(summaries)
+    hard = [s for s in summaries if _is_hard(s)]
+    columns = _columns([s for s in summaries if not _is_hard(s)])
+    return _Layout(cells, hard, columns, _columns(hard), _detectors(summaries))
+
+
+def _main_lines(layout: _Layout) -> list[str]:
+    """The title and the main table: detectors × columns, the paper's rows under it and their note."""
+    columns, rate = layout.columns, layout.rate
     lines = ["# KGN-Bench closed-loop benchmark", "",
              "Rates in % with Wilson 95 % intervals and (successes / attempts; for clear: removed / placed)."]
     if columns:  # a report of hard-tier runs only has no main table
         lines += ["", "| detector | " + " | ".join(c.label for c in columns) + " |", "|---|" + "---|" * len(columns)]
-        for det in detectors:
+        for det in layout.detectors:
             lines.append(f"| {det} | " + " | ".join(str(r).replace(" %", "") if (r := rate(det, c)) else "—"
                                                    for c in columns) + " |")
     for det, figures in PAPER.items():
@@ -223,13 +244,14 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
             lines.append(f"| {det} (paper, real robot) | " + " | ".join(_paper_cell(f) for f in shown) + " |")
     if any(figures.get((c.task, c.rate)) for figures in PAPER.values() for c in columns):
         lines += ["", PAPER_NOTE]
-    if hard:
-        lines += _hard_lines(hard, hard_columns, detectors, rate)
-    if viewpoints:
-        lines += _viewpoint_lines(viewpoints)
-    lines += ["", "## Failure reasons (attempts, all tasks)", "",
-              "| detector | attempts | " + " | ".join(FAILURE_REASONS) + " |",
-              "|---|---:|" + "---:|" * len(FAILURE_REASONS)]
+    return lines
+
+
+def _failure_lines(summaries: list[dict[str, Any]], detectors: list[str]) -> tuple[list[str], dict[str, Any]]:
+    """The failure-reason table (attempts per reason, summed over each detector's runs) and its counts."""
+    lines = ["", "## Failure reasons (attempts, all tasks)", "",
+             "| detector | attempts | " + " | ".join(FAILURE_REASONS) + " |",
+             "|---|---:|" + "---:|" * len(FAILURE_REASONS)]
     failures = {}
     for det in detectors:
         runs = [s for s in summaries if s["detector"] == det]
@@ -237,17 +259,21 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
         failures[det] = counts
         attempts = sum(s.get("attempts", 0) for s in runs)
         lines.append(f"| {det} | {attempts} | " + " | ".join(str(counts[r]) for r in FAILURE_REASONS) + " |")
-    per_object = _per_object(summaries, list(dict.fromkeys(c.task for c in columns + hard_columns)), detectors)
-    lines += _per_object_lines(per_object, {s["task"]: s.get("protocol") for s in summaries})
-    lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries), "", _environment_line(summaries)]
-    text = "\n".join(lines) + "\n"
-    every = columns + hard_columns
+    return lines, failures
+
+
+def _payload(summaries: list[dict[str, Any]], layout: _Layout, failures: dict[str, Any],
+             per_object: dict[str, Any], viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None
+             ) -> dict[str, Any]:
+    """``benchmark.json``: every column's rate per detector, the hard tier's fallen objects, GIGA's and the
+    paper's figures, failures, per-object rates, the runs, and the viewpoint studies' success rates."""
+    every, rate = layout.columns + layout.hard_columns, layout.rate
     payload = {
         "columns": [{"task": c.task, "rate": c.rate, "label": c.label} for c in every],
         "detectors": {det: {c.label: (rate(det, c).to_dict() if rate(det, c) else None) for c in every}
-                      for det in detectors},
+                      for det in layout.detectors},
         "fallen": {f"{s['detector']}/{s['task']}": {k: s.get(k, 0) for k in ("fell_at_setup", "fallen")}
-                   for s in hard},
+                   for s in layout.hard},
         "giga": GIGA,
         "failures": failures,
         "per_object": per_object,
@@ -262,18 +288,49 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
                    "detectors": {det: [p.summary["rates"]["success"] for p in points]
                                  for det, points in series.items()}}
             for name, (study, series) in viewpoints.items()}
+    return payload
+
+
+def _write_report(out: Path, text: str, payload: dict[str, Any], layout: _Layout, summaries: list[dict[str, Any]],
+                  viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None) -> None:
+    """out/benchmark.{md,json,png,html}, and each viewpoint study's plot copied to out/viewpoints_<name>.png."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, (_, series) in (viewpoints or {}).items():
+        plot = next(iter(series.values()))[0].out.parent.parent / "sweep.png"  # <study>/<detector>/<value>
+        if plot.is_file():
+            data = plot.read_bytes()
+            atomic_write(out / f"viewpoints_{name}.png", lambda f, data=data: f.write(data))
+    atomic_write_text(out / "benchmark.md", text)
+    atomic_write_text(out / "benchmark.json", json.dumps(payload, indent=1) + "\n")
+    _chart(layout.detectors, layout.columns + layout.hard_columns, layout.rate, out / "benchmark.png")
+    write_html(text, summaries, out)
+
+
+def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
+                 viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None = None) -> tuple[str, dict[str, Any]]:
+    """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png,html}. ``viewpoints``
+    (``benchmark.run_plan``: name → (study, sweep points per detector)) adds the viewpoint study: its
+    tables, and its plots copied to out/viewpoints_<name>.png. Runs go to the main table or to the hard tier by
+    their protocol's ``report_tier``."""
+    if not summaries:
+        raise ReportError("no runs to report")
+    layout = _layout(summaries)
+    lines = _main_lines(layout)
+    if layout.hard:
+        lines += _hard_lines(layout.hard, layout.hard_columns, layout.detectors, layout.rate)
+    if viewpoints:
+        lines += _viewpoint_lines(viewpoints)
+    failure_lines, failures = _failure_lines(summaries, layout.detectors)
+    lines += failure_lines
+    tasks = list(dict.fromkeys(c.task for c in layout.columns + layout.hard_columns))
+    per_object = _per_object(summaries, tasks, layout.detectors)
+    lines += _per_object_lines(per_object, {s["task"]: s.get("protocol") for s in summaries})
+    lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries), "", _environment_line(summaries)]
+    text = "\n".join(lines) + "\n"
+    payload = _payload(summaries, layout, failures, per_object, viewpoints)
     if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        for name, (_, series) in (viewpoints or {}).items():
-            plot = next(iter(series.values()))[0].out.parent.parent / "sweep.png"  # <study>/<detector>/<value>
-            if plot.is_file():
-                data = plot.read_bytes()
-                atomic_write(out / f"viewpoints_{name}.png", lambda f, data=data: f.write(data))
-        atomic_write_text(out / "benchmark.md", text)
-        atomic_write_text(out / "benchmark.json", json.dumps(payload, indent=1) + "\n")
-        _chart(detectors, every, rate, out / "benchmark.png")
-        write_html(text, summaries, out)
+        _write_report(out, text, payload, layout, summaries, viewpoints)
     return text, payload
 
 

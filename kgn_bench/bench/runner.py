@@ -36,17 +36,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from kgn_bench.config import CLEARANCE_PROTOCOLS, TaskConfig
+from kgn_bench.config import TaskConfig
 from kgn_bench.environment import environment
 from kgn_bench.errors import KGNBenchError, OutputError
 from kgn_bench.io import atomic_write_text, describe_os_error
 from kgn_bench.objects.pybullet_set import ensure_objects
 from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
+from kgn_bench.protocols import protocol
 from kgn_bench.shapes.library import find_object
 from kgn_bench.shapes.mesh_object import check_object
 from kgn_bench.threads import pin_worker_threads, trial_threads
 
+from .records import RecordError, TrialRecord
 from .stats import Rate, summarise, summary_markdown
 from .trial import TIMING_KEYS, check_cameras, run_trial
 
@@ -145,9 +147,10 @@ def _identity_change(existing: dict[str, Any], identity: dict[str, Any]) -> str 
     return f"different {', '.join(dict.fromkeys(diff))}"
 
 
-def read_trials(path: Path, repair: bool = True) -> list[dict[str, Any]]:
-    """Finished trial records of ``trials.jsonl``; a cut-short last line (from a kill) is skipped, and with
-    ``repair`` (only for the run's writer, which holds its lock) removed from the file."""
+def read_trials(path: Path, repair: bool = True) -> list[TrialRecord]:
+    """Finished trial records of ``trials.jsonl`` (of any record shape, ``records.TrialRecord.from_json``); a
+    cut-short last line (from a kill) is skipped, and with ``repair`` (only for the run's writer, which holds
+    its lock) removed from the file. ``RunError`` for a line that is not a record."""
     if not path.is_file():
         return []
     text = path.read_text()
@@ -166,10 +169,14 @@ def read_trials(path: Path, repair: bool = True) -> list[dict[str, Any]]:
         atomic_write_text(path, "".join(good))
     seen: set[int] = set()
     unique = []
-    for r in records:
-        if r["index"] not in seen:
-            seen.add(r["index"])
-            unique.append(r)
+    for n, r in enumerate(records):
+        try:
+            record = TrialRecord.from_json(r)
+        except RecordError as e:
+            raise RunError(f"{path}: line {n + 1} is not a trial record ({e})") from None
+        if record.index not in seen:
+            seen.add(record.index)
+            unique.append(record)
     return unique
 
 
@@ -267,7 +274,7 @@ def _worker_setup(detector: str, instance: Any = None) -> None:
     _WORKER.update(name=detector, detector=built[detector])
 
 
-def _run_one(args: tuple[TaskConfig, int, str | None]) -> dict[str, Any]:
+def _run_one(args: tuple[TaskConfig, int, str | None]) -> TrialRecord:
     task, index, record = args
     try:
         return run_trial(task, index, _WORKER["detector"], _WORKER["ik"], Path(record) if record else None)
@@ -279,11 +286,11 @@ def _run_one(args: tuple[TaskConfig, int, str | None]) -> dict[str, Any]:
                        ) from e
 
 
-def _running_rates(records: list[dict[str, Any]]) -> str:
-    attempts = [a for r in records for a in r["attempts"]]
-    text = f"success {Rate(sum(a['success'] for a in attempts), len(attempts)).value * 100:.0f}%"
-    if records and records[0]["protocol"] in CLEARANCE_PROTOCOLS:
-        clear = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records))
+def _running_rates(records: list[TrialRecord]) -> str:
+    attempts = [a for r in records for a in r.attempts]
+    text = f"success {Rate(sum(a.success for a in attempts), len(attempts)).value * 100:.0f}%"
+    if records and protocol(records[0].protocol).clearance:
+        clear = Rate(sum(r.removed for r in records), sum(r.placed for r in records))
         text += f" clear {clear.value * 100:.0f}%"
     return text
 
@@ -298,7 +305,7 @@ class _RunWriter:
         self.task, self.detector, self.out, self.identity, self.record = task, detector, out, identity, record
         self.trials_path = out / "trials.jsonl"
         self.records = read_trials(self.trials_path)
-        done = {r["index"] for r in self.records}
+        done = {r.index for r in self.records}
         self.todo = [i for i in range(task.n_trials) if i not in done]
         self.rec_dir = out / "recordings"
         if record:
@@ -316,13 +323,13 @@ class _RunWriter:
     def what(self) -> str:
         return f"{self.task.name} with {self.detector} ({len(self.records)} of {self.task.n_trials} trials done)"
 
-    def add(self, rec: dict[str, Any]) -> None:
+    def add(self, rec: TrialRecord) -> None:
         """One finished trial: its line in ``trials.jsonl`` (and its recording moved into place)."""
         if self.record:
-            tmp = self.rec_dir / f"trial_{rec['index']:05d}.rrd.tmp"
+            tmp = self.rec_dir / f"trial_{rec.index:05d}.rrd.tmp"
             if tmp.is_file():
-                os.replace(tmp, self.rec_dir / f"trial_{rec['index']:05d}.rrd")
-        line = json.dumps(rec, sort_keys=True) + "\n"
+                os.replace(tmp, self.rec_dir / f"trial_{rec.index:05d}.rrd")
+        line = json.dumps(rec.to_json(), sort_keys=True) + "\n"
         try:
             with open(self.trials_path, "a") as f:
                 f.write(line)
@@ -358,7 +365,7 @@ class _RunWriter:
         if self.record:
             parts = sorted(self.rec_dir.glob("trial_*.rrd"))
             if parts:
-                from kgn_bench.viz.recording import merge_recordings
+                from kgn_bench.viz.rerun_viewer import merge_recordings
 
                 merge_recordings(parts, out / "recording.rrd")
         return RunResult(summary, timing, len(self.todo))
@@ -410,7 +417,7 @@ def run_benchmark(task: TaskConfig, detector: str, out: Path, workers: int = 1, 
         return writer.finish(time.perf_counter() - start, workers)
 
 
-def _run_any(args: tuple[int, str, TaskConfig, int]) -> tuple[int, dict[str, Any]]:
+def _run_any(args: tuple[int, str, TaskConfig, int]) -> tuple[int, TrialRecord]:
     """A trial of any run of ``run_many``: (run number, detector, task, index) -> (run number, record)."""
     k, detector, task, index = args
     _worker_setup(detector)
@@ -454,7 +461,7 @@ def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progres
             if not w.todo:
                 finish(k)
 
-        def arrived(result: tuple[int, dict[str, Any]]) -> None:
+        def arrived(result: tuple[int, TrialRecord]) -> None:
             k, rec = result
             writers[k].add(rec)
             if writers[k].complete:
@@ -466,11 +473,11 @@ def run_many(runs: list[tuple[TaskConfig, str, Path]], workers: int = 1, progres
     return [r for r in results if r is not None]
 
 
-def timing_summary(records: list[dict[str, Any]], wall: float, ran: int, workers: int) -> dict[str, Any]:
+def timing_summary(records: list[TrialRecord], wall: float, ran: int, workers: int) -> dict[str, Any]:
     """Mean wall seconds per trial of each stage, and trials per minute of this invocation."""
     n = max(1, len(records))
-    per_trial = {k: sum(r["timing"].get(k, 0.0) for r in records) / n for k in TIMING_KEYS}
-    sim = sum(a["sim_time"] for r in records for a in r["attempts"]) / n
+    per_trial = {k: sum(r.timing.get(k, 0.0) for r in records) / n for k in TIMING_KEYS}
+    sim = sum(a.sim_time for r in records for a in r.attempts) / n
     return {
         "trials_run": ran,
         "workers": workers,

@@ -13,9 +13,10 @@ from typing import Any
 
 from scipy.stats import binomtest
 
-from kgn_bench.config import CLEARANCE_PROTOCOLS, CLUTTER_PROTOCOLS
+from kgn_bench.protocols import Protocol, protocol
 
 from .attempt import FAILURE_REASONS, NOT_EXECUTED
+from .records import TrialRecord
 from .selector import REJECTIONS
 
 __all__ = ["Rate", "per_object_meaning", "summarise", "summary_markdown", "wilson_interval"]
@@ -57,13 +58,13 @@ class Rate:
         return f"{100 * self.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] ({self.k}/{self.n})"
 
 
-def per_object_meaning(protocol: str | None) -> str:
-    """What a summary's per-object rate counts under ``protocol``: ``success`` (single-object trials) or
-    ``put in the bin`` (clearance: objects of the type removed / placed)."""
-    return "success" if protocol == "single_object" else "put in the bin"
+def per_object_meaning(name: str | None) -> str:
+    """What a summary's per-object rate counts under protocol ``name`` (``Protocol.per_object_meaning``):
+    ``success`` (single-object trials) or ``put in the bin`` (clearance: objects of the type removed / placed)."""
+    return protocol(name).per_object_meaning
 
 
-def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, Any]:
+def summarise(records: list[TrialRecord], run: dict[str, Any]) -> dict[str, Any]:
     """The deterministic summary of a run: rates, failure counts, per-object rates, selector rejections.
 
     Per object type: single-object runs give successes / attempts on that object; multi-object runs give
@@ -74,32 +75,22 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
     ``run`` is the run's identity (task, detector, seed, ...), copied in. Records are sorted by index, so
     the summary does not depend on the order trials finished in.
     """
-    records = sorted(records, key=lambda r: r["index"])
-    every = [a for r in records for a in r["attempts"]]
-    failures = Counter(a["reason"] for a in every if not a["success"])
+    spec = protocol(run.get("protocol"))
+    records = sorted(records, key=lambda r: r.index)
+    every = [a for r in records for a in r.attempts]
+    failures = Counter(a.reason for a in every if not a.success)
     attempts = every
-    if run.get("protocol") in CLUTTER_PROTOCOLS:  # GSR counts executed grasps only (VGN/GIGA)
-        attempts = [a for a in every if a["reason"] not in NOT_EXECUTED]
-    successes = sum(a["success"] for a in attempts)
+    if spec.gsr_executed_only:  # GSR counts executed grasps only (VGN/GIGA)
+        attempts = [a for a in every if a.reason not in NOT_EXECUTED]
+    successes = sum(a.success for a in attempts)
     rejected = Counter()
     for a in attempts:
-        rejected.update(a.get("rejected", {}))
+        rejected.update(a.rejected)
     rates = {"success": Rate(successes, len(attempts)).to_dict()}
-    if run.get("protocol") in CLEARANCE_PROTOCOLS:
-        rates["clear"] = Rate(sum(r["removed"] for r in records), sum(r["placed"] for r in records)).to_dict()
-        rates["scenes_cleared"] = Rate(sum(r["removed"] == r["placed"] for r in records), len(records)).to_dict()
-    per_object: dict[str, list[int]] = {}
-    single = run.get("protocol") == "single_object"
-    for r in records:
-        if single:  # successes / attempts on the trial's one object
-            k, n = per_object.setdefault(r["objects"][0], [0, 0])
-            per_object[r["objects"][0]] = [k + sum(a["success"] for a in r["attempts"]), n + len(r["attempts"])]
-        else:  # objects of the type put in the bin / placed
-            for name in r.get("placed_objects", r["objects"]):  # older records: every object
-                per_object.setdefault(name, [0, 0])[1] += 1
-            for a in r["attempts"]:
-                if a["success"]:
-                    per_object[a["object"]][0] += 1
+    if spec.clearance:
+        rates["clear"] = Rate(sum(r.removed for r in records), sum(r.placed for r in records)).to_dict()
+        rates["scenes_cleared"] = Rate(sum(r.removed == r.placed for r in records), len(records)).to_dict()
+    per_object = _per_object_counts(records, spec)
     return {
         **run,
         "trials": len(records),
@@ -112,12 +103,30 @@ def summarise(records: list[dict[str, Any]], run: dict[str, Any]) -> dict[str, A
     }
 
 
-def _clutter_totals(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Pile and packed runs: objects that left the table while the scene was built, and during the rounds."""
-    if not records or "fallen" not in records[0]:
+def _per_object_counts(records: list[TrialRecord], spec: Protocol) -> dict[str, list[int]]:
+    """``{object: [k, n]}``: for a one-object protocol successes / attempts on the trial's object; otherwise
+    objects of the type put in the bin / placed (``placed_objects``; every object in records older than it)."""
+    per_object: dict[str, list[int]] = {}
+    for r in records:
+        if spec.one_object:  # successes / attempts on the trial's one object
+            k, n = per_object.setdefault(r.objects[0], [0, 0])
+            per_object[r.objects[0]] = [k + sum(a.success for a in r.attempts), n + len(r.attempts)]
+        else:  # objects of the type put in the bin / placed
+            for name in r.placed_objects:
+                per_object.setdefault(name, [0, 0])[1] += 1
+            for a in r.attempts:
+                if a.success:
+                    per_object[a.object][0] += 1
+    return per_object
+
+
+def _clutter_totals(records: list[TrialRecord]) -> dict[str, Any]:
+    """Pile and packed runs: objects that left the table while the scene was built, and during the rounds
+    (records that count them, ``TrialRecord.fallen`` not None)."""
+    if not records or records[0].fallen is None:
         return {}
-    return {"fell_at_setup": sum(r.get("fell_at_setup", 0) for r in records),
-            "fallen": sum(r.get("fallen", 0) for r in records)}
+    return {"fell_at_setup": sum(r.fell_at_setup or 0 for r in records),
+            "fallen": sum(r.fallen or 0 for r in records)}
 
 
 def _rate_row(name: str, d: dict[str, Any]) -> str:

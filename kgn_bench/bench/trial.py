@@ -14,23 +14,24 @@ depends only on the task, its seed and its index; the camera of a task with came
 ``default_rng([seed, index, CAMERA_STREAM])`` (``camera_pose``), so the scene is the same whatever the
 camera.
 
-The returned record is plain JSON data; its ``timing`` block (wall seconds) is the only part that varies
-between runs. Faults are outcomes, not crashes: a scene that cannot be built or a MuJoCo fault becomes a
-``physics_error`` attempt, and a detector whose ``reset`` or ``detect`` raises, or whose ``detect`` returns
-something other than ``Candidates``, a ``detector_error`` attempt.
+The returned record is a ``records.TrialRecord`` (its JSON form is one line of ``trials.jsonl``); its
+``timing`` block (wall seconds) is the only part that varies between runs. Faults are outcomes, not crashes:
+a scene that cannot be built or a MuJoCo fault becomes a ``physics_error`` attempt, and a detector whose
+``reset`` or ``detect`` raises, or whose ``detect`` returns something other than ``Candidates``, a
+``detector_error`` attempt.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from kgn_bench.camera import orbit_pose
-from kgn_bench.config import CLUTTER_PROTOCOLS, TaskConfig
+from kgn_bench.config import TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.geometry import quat_wxyz_from_matrix
 from kgn_bench.shapes import sample_shape
@@ -43,9 +44,10 @@ from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
 from kgn_bench.sim.view_check import check_view
 
 from .attempt import NOT_EXECUTED, AttemptResult, execute_grasp
+from .records import AttemptRecord, TrialRecord
 from .selector import DepthView, GraspSelector, Selection
 
-__all__ = ["CAMERA_STREAM", "TIMING_KEYS", "Capture", "camera_coordinates", "camera_pose", "capture",
+__all__ = ["ARRANGEMENTS", "CAMERA_STREAM", "TIMING_KEYS", "Capture", "camera_coordinates", "camera_pose", "capture",
            "check_cameras", "run_trial", "trial_objects"]
 
 TIMING_KEYS = ("setup", "render", "detect", "select", "simulate")
@@ -75,7 +77,7 @@ def check_cameras(task: TaskConfig, ik: IK | None = None) -> int:
     """Refuse a task whose cameras do not all see the workspace (``sim.view_check``): every distinct trial
     camera is checked on the empty work cell with the arm parked; ``ViewError`` names the first that fails,
     with its trial and coordinates. Returns the number of cameras checked."""
-    scene = Scene([], extend=_pile_workcell if task.protocol == "pile" else add_workcell)
+    scene = Scene([], extend=_workcell(task))
     Executor(scene, ik or IK()).reset(PARK_Q)
     seen: set[tuple[float, float, float]] = set()
     with SceneRenderer(scene) as renderer:
@@ -92,9 +94,9 @@ def check_cameras(task: TaskConfig, ik: IK | None = None) -> int:
 
 
 def trial_objects(task: TaskConfig, index: int, rng: np.random.Generator) -> list[SceneObject]:
-    """The objects of trial ``index``: for single_object the set's ``index // trials``-th object;
-    for the clearance protocols ``objects_per_scene`` names drawn without replacement while the set allows."""
-    if task.protocol == "single_object":
+    """The objects of trial ``index``: for a one-object protocol the set's ``index // trials``-th object;
+    for the others ``objects_per_scene`` names drawn without replacement while the set allows."""
+    if task.spec.one_object:
         names = [task.objects[index // task.trials]]
     else:
         k = task.objects_per_scene
@@ -117,22 +119,33 @@ class _Clock:
 SCENE_TRIES = 5
 
 
+def _spread(scene: Scene, rng: np.random.Generator) -> None:
+    """Spread the objects on the table and let them settle (``sim.placement.place_objects``)."""
+    place_objects(scene, rng, PlacementConfig())
+    settle(scene, PlacementConfig())
+
+
+ARRANGEMENTS: dict[str, Callable[[Scene, np.random.Generator], None]] = {
+    "spread": _spread, "pile": pile_objects, "packed": pack_objects}
+"""How a protocol puts its objects on the table (``Protocol.arrangement``), from the trial's generator."""
+
+
+def _workcell(task: TaskConfig) -> Callable[..., None]:
+    """The MJCF extension of the task's work cell: the arm, bin and camera, with the pile box if the protocol
+    drops its objects into one."""
+    return _pile_workcell if task.spec.pile_box else add_workcell
+
+
 def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]:
     """The trial's work cell with its objects placed and settled, the arm parked (retried on a blow-up)."""
     rng = np.random.default_rng([task.seed, index])
-    pile = task.protocol == "pile"
+    arrange = ARRANGEMENTS[task.spec.arrangement]
     for attempt in range(SCENE_TRIES):
-        scene = Scene(trial_objects(task, index, rng), extend=_pile_workcell if pile else add_workcell)
+        scene = Scene(trial_objects(task, index, rng), extend=_workcell(task))
         executor = Executor(scene, ik)
         executor.reset(PARK_Q)
         try:
-            if pile:
-                pile_objects(scene, rng)
-            elif task.protocol == "packed":
-                pack_objects(scene, rng)
-            else:
-                place_objects(scene, rng, PlacementConfig())
-                settle(scene, PlacementConfig())
+            arrange(scene, rng)
         except PhysicsError:
             if attempt == SCENE_TRIES - 1:
                 raise
@@ -150,26 +163,23 @@ def _error_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {e}".splitlines()[0][:200]
 
 
-def _failed_attempt(reason: str, detail: str) -> dict[str, Any]:
-    return {"success": False, "reason": reason, "object": None, "candidates": 0, "selected": None, "score": None,
-            "grasp": None, "width": None, "rejected": {}, "detail": detail, "sim_time": 0.0}
+def _trial_record(task: TaskConfig, index: int, names: list[str], placed: list[str],
+                  attempts: list[AttemptRecord], removed: int, fell_at_setup: int, fallen: int,
+                  clock: _Clock) -> TrialRecord:
+    """The trial's record; the fallen-object counts only for a protocol that counts them (the others' records
+    stay as they were)."""
+    counts = task.spec.counts_fallen
+    return TrialRecord(index, task.protocol, names, len(placed), placed, removed, attempts,
+                       {k: round(v, 4) for k, v in clock.totals.items()},
+                       fell_at_setup if counts else None, fallen if counts else None)
 
 
 def _fault_record(task: TaskConfig, index: int, reason: str, detail: str, clock: _Clock,
-                  names: list[str], placed: list[str]) -> dict[str, Any]:
+                  names: list[str], placed: list[str]) -> TrialRecord:
     """The record of a trial that ended before its first capture (no stable scene, a detector that cannot
     reset): one failed attempt with ``reason``."""
-    return {"index": index, "protocol": task.protocol, "objects": names, "placed": len(placed),
-            "placed_objects": placed, "removed": 0, "attempts": [_failed_attempt(reason, detail)],
-            **_clutter_counts(task, len(names) - len(placed), 0),
-            "timing": {k: round(v, 4) for k, v in clock.totals.items()}}
-
-
-def _clutter_counts(task: TaskConfig, fell_at_setup: int, fallen: int) -> dict[str, int]:
-    """The pile and packed records' extra counts (none for the other protocols, whose records stay as they were)."""
-    if task.protocol not in CLUTTER_PROTOCOLS:
-        return {}
-    return {"fell_at_setup": fell_at_setup, "fallen": fallen}
+    return _trial_record(task, index, names, placed, [AttemptRecord.failed(reason, detail)], 0,
+                         len(names) - len(placed), 0, clock)
 
 
 def _prepare_detector(detector: Detector, task: TaskConfig, index: int, scene: Scene) -> None:
@@ -185,16 +195,16 @@ def _prepare_detector(detector: Detector, task: TaskConfig, index: int, scene: S
 
 def _open_recording(record: Path | None, task: TaskConfig, index: int, scene: Scene, executor: Executor):
     if record is None:
-        from kgn_bench.viz.recording import NO_RECORDING
+        from kgn_bench.viz.trial_recording import NO_RECORDING
 
         return NO_RECORDING
-    from kgn_bench.viz.recording import TrialRecording
+    from kgn_bench.viz.trial_recording import TrialRecording
 
     return TrialRecording(record, f"{task.name}/trial_{index:05d}", scene.model, scene.data, executor, RECORD_EVERY)
 
 
-def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: Path | None = None) -> dict[str, Any]:
-    """Run trial ``index`` of ``task`` with ``detector``; returns its JSON record."""
+def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: Path | None = None) -> TrialRecord:
+    """Run trial ``index`` of ``task`` with ``detector``; returns its record."""
     clock = _Clock()
     t = time.perf_counter()
     try:
@@ -216,29 +226,20 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     clock.add("setup", t)
     attempts, _ = _episode(task, index, scene, executor, detector, clock, names, recording)
     recording.close()
-    removed = int(sum(a["success"] for a in attempts))
+    removed = int(sum(a.success for a in attempts))
     left = sum(on_table(scene, i) for i in placed)
-    return {
-        "index": index,
-        "protocol": task.protocol,
-        "objects": names,
-        "placed": len(placed_names),
-        "placed_objects": placed_names,
-        "removed": removed,
-        "attempts": attempts,
-        **_clutter_counts(task, len(names) - len(placed), max(0, len(placed) - removed - left)),
-        "timing": {k: round(v, 4) for k, v in clock.totals.items()},
-    }
+    return _trial_record(task, index, names, placed_names, attempts, removed, len(names) - len(placed),
+                         max(0, len(placed) - removed - left), clock)
 
 
 def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, detector: Detector, clock: _Clock,
-             names: list[str], recording, until: int | None = None) -> tuple[list[dict[str, Any]], Capture | None]:
+             names: list[str], recording, until: int | None = None) -> tuple[list[AttemptRecord], Capture | None]:
     """Capture, detect, select and execute until the protocol ends; returns the attempt records. With ``until``
     = K, stop at attempt K's selection instead, not executing it, and return it as a ``Capture`` too (None if
     the protocol ended first)."""
     cam = camera_pose(task, index)
-    attempts: list[dict[str, Any]] = []
-    max_attempts = 1 if task.protocol == "single_object" else task.execution.max_attempts_per_object * len(names)
+    attempts: list[AttemptRecord] = []
+    max_attempts = 1 if task.spec.one_object else task.execution.max_attempts_per_object * len(names)
     consecutive = 0
     failed: list[np.ndarray] = []  # grasps (world; executed and as chosen) that failed in this trial
     noise = DepthNoise(task.camera.depth_noise) if task.camera.depth_noise > 0 else None
@@ -256,18 +257,18 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
                 attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
                                                np.array(failed).reshape(-1, 4, 4))
             except PhysicsError as e:  # a fault outside the grasp's own execution (the settling wait)
-                attempt, sel, cands = _failed_attempt("physics_error", str(e)), None, None
+                attempt, sel, cands = AttemptRecord.failed("physics_error", str(e)), None, None
             attempts.append(attempt)
-            if not attempt["success"] and sel is not None:
+            if not attempt.success and sel is not None:
                 failed.extend(sel.tried)
             shown = cands is not None and len(cands) > 0
             recording.attempt(len(attempts), attempt, cands.world_poses(cam) if shown else None,
                               cands.widths if shown else None, sel.scores if shown else None,
                               sel.index if shown else None)
-            consecutive = 0 if attempt["success"] else consecutive + 1
-            if attempt["reason"] == "physics_error":
+            consecutive = 0 if attempt.success else consecutive + 1
+            if attempt.reason == "physics_error":
                 break
-            if task.protocol in CLUTTER_PROTOCOLS and attempt["reason"] in NOT_EXECUTED:
+            if task.spec.ends_when_nothing_executed and attempt.reason in NOT_EXECUTED:
                 break
     return attempts, None
 
@@ -318,7 +319,7 @@ class Capture:
     observation: Observation
     candidates: Candidates
     selection: Selection
-    earlier: list[dict[str, Any]] = field(default_factory=list)
+    earlier: list[AttemptRecord] = field(default_factory=list)
 
 
 def capture(task: TaskConfig, index: int, detector: Detector, ik: IK, attempt: int = 1) -> Capture | None:
@@ -348,7 +349,7 @@ def _grasp_pose(sel: Selection | None) -> list[float] | None:
 
 def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,
              clock: _Clock, names: list[str], failed: np.ndarray
-             ) -> tuple[dict[str, Any], Selection | None, Candidates | None]:
+             ) -> tuple[AttemptRecord, Selection | None, Candidates | None]:
     t = time.perf_counter()
     sim0 = scene.data.time
     cands = sel = None
@@ -364,7 +365,7 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
         if sel.index is None:
             result = AttemptResult(sel.reason or "no_candidate")
         else:
-            park = task.protocol != "single_object"
+            park = task.spec.park_between_attempts
             result = execute_grasp(scene, executor, sel, task.execution, park=park)
             clock.add("simulate", t)
             if park and result.reason != "physics_error":
@@ -374,17 +375,18 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
                     result = AttemptResult("physics_error", detail=str(e))
                 if task.execution.remove_placed and result.reason is None and result.object is not None:
                     scene.retire_object(result.object)  # counted in the bin: out of the round's physics
-    record = {
-        "success": result.reason is None,
-        "reason": result.reason,
-        "object": names[result.object] if result.object is not None else None,
-        "candidates": 0 if cands is None else len(cands),
-        "selected": None if sel is None or sel.index is None else sel.index,
-        "score": None if sel is None or sel.index is None else round(float(sel.scores[sel.index]), 6),
-        "grasp": _grasp_pose(sel),
-        "width": None if sel is None or sel.index is None else round(float(sel.width), 6),
-        "rejected": {} if sel is None else dict(sel.rejected),
-        "detail": result.detail,
-        "sim_time": round(scene.data.time - sim0, 3),
-    }
+    chosen = sel is not None and sel.index is not None
+    record = AttemptRecord(
+        success=result.reason is None,
+        reason=result.reason,
+        object=names[result.object] if result.object is not None else None,
+        candidates=0 if cands is None else len(cands),
+        selected=sel.index if chosen else None,
+        score=round(float(sel.scores[sel.index]), 6) if chosen else None,
+        grasp=_grasp_pose(sel),
+        width=round(float(sel.width), 6) if chosen else None,
+        rejected={} if sel is None else dict(sel.rejected),
+        detail=result.detail,
+        sim_time=round(scene.data.time - sim0, 3),
+    )
     return record, sel, cands

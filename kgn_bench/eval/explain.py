@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from kgn_bench.bench.records import TrialRecord
 from kgn_bench.config import ConfigError, task_from_dict
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import invert_pose
@@ -181,7 +182,7 @@ class _Run:
     detector_name: str
     detector: Any
     weights_changed: bool
-    records: dict[int, dict[str, Any]]
+    records: dict[int, TrialRecord]
 
 
 def _trusted_detector(run: Path, recorded: Any, given: str | None) -> str:
@@ -210,8 +211,8 @@ def _open_run(run: str | Path, detector: str | None = None) -> _Run:
     except ConfigError as e:
         raise ExplainError(str(e)) from None
     name = _trusted_detector(run, identity["detector"], detector)
-    records = {r["index"]: r for r in read_trials(run / "trials.jsonl", repair=False)  # a reader: never writes
-               if isinstance(r.get("index"), int)}
+    records = {r.index: r for r in read_trials(run / "trials.jsonl", repair=False)  # a reader: never writes
+               if isinstance(r.index, int)}
     detector = build_detector(name)
     changed = run_identity(task, name).get("weights_sha256") != identity.get("weights_sha256")
     return _Run(run, task, name, detector, changed, records)
@@ -228,7 +229,7 @@ def _explain(r: _Run, index: int, attempt: int, top: int, draw: bool) -> TrialEx
     from kgn_bench.threads import trial_threads
 
     record = r.records[index]
-    attempts = record["attempts"]
+    attempts = record.attempts
     with trial_threads():
         try:
             cap = capture(r.task, index, r.detector, IK(), attempt)
@@ -254,13 +255,13 @@ def _explain(r: _Run, index: int, attempt: int, top: int, draw: bool) -> TrialEx
         all_matched = grasp_errors(world, cands.widths, truth, obs)[1]
     best = np.argsort(-sel.scores, kind="stable")[:top]
     mine = attempts[attempt - 1]
-    recorded = {k: mine.get(k) for k in ("success", "reason", "detail", "candidates", "selected")}
-    same = (cap.earlier == attempts[: attempt - 1] and sel.index == mine.get("selected")
-            and len(cands) == mine.get("candidates"))
+    recorded = {k: getattr(mine, k) for k in ("success", "reason", "detail", "candidates", "selected")}
+    same = (cap.earlier == attempts[: attempt - 1] and sel.index == mine.selected
+            and len(cands) == mine.candidates)
     image = _draw(obs, truth, world[best], cands.widths[best], sel.grasp, sel.width, nearest) if draw else None
     return TrialExplanation(
         run=str(r.path), task=r.task.name, detector=r.detector_name, index=index, attempt=attempt,
-        objects=list(record.get("objects", [])),
+        objects=list(record.objects),
         recorded=recorded, candidates=len(cands), selected=sel.index, rejected=dict(sel.rejected),
         candidate=candidate, executed=executed, top_matched=int(all_matched[best].sum()), top=len(best),
         matched=int(all_matched.sum()), same_as_recorded=same, weights_changed=r.weights_changed,
@@ -280,7 +281,7 @@ def explain_trial(run: str | Path, index: int, attempt: int = 1, top: int = TOP,
         raise ExplainError(f"{run}: trial {index} is out of range (the run has trials 0-{r.task.n_trials - 1})")
     if index not in r.records:
         raise ExplainError(f"{run}: trial {index} has no record in trials.jsonl (run or resume it first)")
-    attempts = r.records[index].get("attempts") or []
+    attempts = r.records[index].attempts
     if not 1 <= attempt <= len(attempts):
         raise ExplainError(f"{run}: trial {index} has no attempt {attempt} (it made {len(attempts)})")
     return _explain(r, index, attempt, top, draw=True)
@@ -351,12 +352,12 @@ def explain_failures(run: str | Path, top: int = TOP, progress: bool = True,
     r = _open_run(run, detector)
     todo, faults, total = [], [], 0
     for index in sorted(r.records):
-        for k, a in enumerate(r.records[index].get("attempts") or [], start=1):
+        for k, a in enumerate(r.records[index].attempts, start=1):
             total += 1
-            if a.get("success"):
+            if a.success:
                 continue
-            if a.get("reason") in ("physics_error", "detector_error"):
-                faults.append({"index": index, "attempt": k, "reason": a["reason"], "detail": a.get("detail", "")})
+            if a.reason in ("physics_error", "detector_error"):
+                faults.append({"index": index, "attempt": k, "reason": a.reason, "detail": a.detail})
             else:
                 todo.append((index, k))
     bar = Progress(len(todo), f"explain {r.detector_name} failures", unit="attempts", enabled=progress)

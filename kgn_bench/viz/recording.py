@@ -1,4 +1,5 @@
-"""Rerun recordings (.rrd) of benchmark trials: scene geometry, body motion, observations, grasps, outcomes.
+"""The rerun writer: one .rrd recording of a benchmark trial: scene geometry, body motion, observations, grasps,
+outcomes.
 
 One ``Recorder`` writes one .rrd file for one trial through its own ``rr.RecordingStream``; it never
 touches rerun's global or thread-local recording, so several recorders may live (one after another or
@@ -25,17 +26,15 @@ nanoseconds). Wall-clock ``log_time`` is not recorded, so a recording depends on
 
 Body names may contain ``/`` (dm_control prefixes such as ``robot/link3``); each path part is sanitised
 (every character outside ``[A-Za-z0-9_-]`` becomes ``_``, collisions get an ``_{id}`` suffix).
+
+The recording's files (merge, copy) and the viewers are in ``viz.rerun_viewer``; what a trial records, in
+``viz.trial_recording``.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import os
 import re
 import shutil
-import subprocess
-import sys
-import tempfile
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,7 +47,6 @@ import rerun as rr
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import backproject
 from kgn_bench.gripper import GRIPPER
-from kgn_bench.io import atomic_write
 
 __all__ = [
     "APPLICATION_ID",
@@ -58,16 +56,9 @@ __all__ = [
     "TIMELINE",
     "Recorder",
     "RecordingError",
-    "copy_recording",
     "gripper_sketch",
-    "merge_recordings",
-    "open_viewer",
-    "rerun_command",
     "sanitize_path_part",
     "score_colors",
-    "serve_web",
-    "stop_server",
-    "web_viewer_url",
 ]
 
 APPLICATION_ID = "kgn-bench"
@@ -89,7 +80,6 @@ _SELECTED_RADIUS = 0.003
 SELECTED_COLOR = (0, 200, 255)
 """RGB of the executed grasp's sketch (cyan)."""
 _POINT_RADIUS = 0.001
-_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 
 
 # -- pure helpers ---------------------------------------------------------------------------------
@@ -497,204 +487,3 @@ class Recorder:
             self._closed = True
         if not self.path.is_file():
             raise RecordingError(f"cannot write recording {self.path}: the file was not created")
-
-
-# -- files and viewer -----------------------------------------------------------------------------
-def rerun_command() -> list[str]:
-    """The command line that runs the installed rerun CLI (the ``rerun`` script next to ``sys.executable``,
-    else the binary shipped in the ``rerun_cli`` package, else ``rerun`` on ``PATH``)."""
-    exe_dir = Path(sys.executable).parent
-    for candidate in (exe_dir / "rerun", exe_dir / "rerun.exe"):
-        if candidate.is_file() and os.access(candidate, os.X_OK):
-            return [str(candidate)]
-    spec = importlib.util.find_spec("rerun_cli")
-    if spec is not None and spec.origin is not None:
-        for candidate in (Path(spec.origin).parent / "rerun", Path(spec.origin).parent / "rerun.exe"):
-            if candidate.is_file():
-                return [str(candidate)]
-    found = shutil.which("rerun")
-    if found is None:
-        raise RuntimeError("rerun CLI not found: install rerun-sdk in this environment")
-    return [found]
-
-
-def merge_recordings(parts: list[Path], out: Path) -> None:
-    """Merge per-trial .rrd files into one .rrd at ``out`` with ``rerun rrd merge``.
-
-    Each part keeps its own recording (store) in the result, keyed by its recording id, so parts must
-    have distinct ids (``Recorder`` names). ``out`` is written to a temporary file beside it and moved into
-    place with ``os.replace``. Raises ``FileNotFoundError`` for a missing part and ``RuntimeError`` naming
-    the files if the CLI fails.
-    """
-    parts = [Path(p) for p in parts]
-    out = Path(out)
-    if not parts:
-        raise ValueError("merge_recordings needs at least one input recording")
-    for p in parts:
-        if not p.is_file():
-            raise FileNotFoundError(f"recording to merge does not exist: {p}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".rrd", dir=out.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        cmd = [*rerun_command(), "rrd", "merge", *map(str, parts), "-o", str(tmp)]
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        if proc.returncode != 0 or tmp.stat().st_size == 0:
-            log = _ANSI_ESCAPE.sub("", proc.stderr or proc.stdout or "")
-            tail = "\n".join(log.strip().splitlines()[-10:])
-            last = tail.splitlines()[-1] if tail else "no message"
-            names = ", ".join(p.name for p in parts[:5]) + (", ..." if len(parts) > 5 else "")
-            raise RecordingError(f"merging {len(parts)} recordings ({names}) into {out} failed (rerun rrd merge "
-                                 f"exit {proc.returncode}: {last})")
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; a recording is read like any result
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def copy_recording(path: Path, dest: Path) -> None:
-    """Copy a recording to ``dest`` atomically (``OutputError`` naming ``dest`` if it cannot be written)."""
-    with open(path, "rb") as src:
-        atomic_write(dest, lambda f: shutil.copyfileobj(src, f, 1 << 20))
-
-
-def web_viewer_url(port: int) -> str:
-    """The address that opens the web viewer on ``port`` connected to the recording's server on ``port + 1``."""
-    return f"http://127.0.0.1:{port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{port + 1}%2Fproxy"
-
-
-def serve_web(path: Path, port: int = 9090, wait: bool = True) -> subprocess.Popen:
-    """Serve ``path`` to a browser from this machine: rerun's own web viewer (shipped in the rerun-sdk wheel,
-    no internet needed) over HTTP on 127.0.0.1:``port``, and the recording over gRPC on ``port + 1``. Prints
-    the address to open (on a headless server, forward the two ports, e.g. ``ssh -L 9090:localhost:9090 -L
-    9091:localhost:9091 host``). With ``wait`` it serves until interrupted; otherwise it returns the server
-    process (stop it with ``stop_server``). ``RecordingError`` if the server does not start (a port in use, a
-    broken recording)."""
-    import socket
-    import time
-
-    for p in (port, port + 1):
-        with socket.socket() as sock:
-            if sock.connect_ex(("127.0.0.1", p)) == 0:
-                raise RecordingError(f"port {p} on 127.0.0.1 is in use; choose another with --port")
-    cmd = [*rerun_command(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
-           "--port", str(port + 1), str(path)]
-    env = {**os.environ, "RERUN_ANALYTICS": "false"}
-    import signal
-
-    def terminate(signum, frame):
-        raise KeyboardInterrupt
-
-    # A `kill` stops the server too, not only Ctrl-C. The handler is in place before the server starts, and the
-    # server is stopped on every way out of here but a clean `wait=False` start, so an interrupt that lands
-    # while the viewer is still starting cannot leave it running in its own session.
-    previous = signal.signal(signal.SIGTERM, terminate) if wait else None
-    log = tempfile.TemporaryFile()
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env, start_new_session=True)
-    started = False
-    try:
-        deadline = time.monotonic() + 20.0
-        while time.monotonic() < deadline:
-            if proc.poll() is not None:
-                log.seek(0)
-                err = _ANSI_ESCAPE.sub("", log.read().decode(errors="replace"))
-                last = err.strip().splitlines()[-1] if err.strip() else f"exit {proc.returncode}"
-                raise RecordingError(f"the rerun web viewer did not start: {last}")
-            with socket.socket() as sock:
-                if sock.connect_ex(("127.0.0.1", port)) == 0:
-                    break
-            time.sleep(0.1)
-        else:
-            raise RecordingError(f"the rerun web viewer did not answer on port {port} within 20 s")
-        print(f"serving {path}: open {web_viewer_url(port)}", flush=True)
-        started = True
-        if wait:
-            proc.wait()
-    except KeyboardInterrupt:
-        if not started:
-            raise
-    finally:
-        if wait or not started:
-            stop_server(proc)
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-    return proc
-
-
-def stop_server(proc: subprocess.Popen) -> None:
-    """Stop a server started in its own session and everything it started (the ``rerun`` launcher runs the
-    viewer binary as a child)."""
-    import signal
-
-    try:
-        os.killpg(proc.pid, signal.SIGTERM)
-    except ProcessLookupError:
-        return
-    try:
-        proc.wait(timeout=5)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-
-
-def open_viewer(path: Path) -> None:
-    """Open the recording ``path`` in the rerun viewer (a detached ``rerun`` process); returns at once."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"recording does not exist: {path}")
-    subprocess.Popen([*rerun_command(), str(path)], start_new_session=True, stdin=subprocess.DEVNULL)
-
-
-class TrialRecording:
-    """What a benchmark trial records, behind three calls: ``observation`` after each capture, ``attempt``
-    after each attempt, ``close`` at the end. Opening it logs the scene's geometry and hooks the executor so
-    that the state is logged every ``every`` control ticks. ``NO_RECORDING`` does nothing, for trials that
-    are not recorded."""
-
-    def __init__(self, path: Path, name: str, model: mujoco.MjModel, data: mujoco.MjData, executor,
-                 every: int = 5) -> None:
-        self._rec = Recorder(path, name)
-        self._rec.log_geometry(model)
-        self._rec.log_state(model, data)
-        self._data = data
-        self._observed_at = float(data.time)
-        ticks = iter(range(1, 1 << 62))
-
-        def on_tick() -> None:
-            if next(ticks) % every == 0:
-                self._rec.log_state(model, data)
-
-        executor.on_tick = on_tick
-
-    def observation(self, rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray) -> None:
-        self._observed_at = float(self._data.time)
-        self._rec.log_observation(rgb, depth, K, camera_pose, self._observed_at)
-
-    def attempt(self, number: int, attempt: dict, poses_world: np.ndarray | None, widths: np.ndarray | None,
-                scores: np.ndarray | None, selected: int | None) -> None:
-        """The candidates of attempt ``number`` (world frame, if any), logged at the time of the observation
-        they were detected in, and its outcome line, logged now (when the attempt has ended)."""
-        if poses_world is not None and len(poses_world):
-            self._rec.log_candidates(poses_world, widths, scores, selected, self._observed_at)
-        outcome = "success" if attempt["success"] else attempt["reason"]
-        what = f" ({attempt['object']})" if attempt["object"] else ""
-        self._rec.log_outcome(f"attempt {number}: {outcome}{what} {attempt['detail']}".strip(), self._data.time)
-
-    def close(self) -> None:
-        self._rec.close()
-
-
-class _NoRecording:
-    def observation(self, *args, **kwargs) -> None:
-        pass
-
-    def attempt(self, *args, **kwargs) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-NO_RECORDING = _NoRecording()
-"""The recording of a trial that is not recorded."""
