@@ -195,10 +195,10 @@ def _prepare_detector(detector: Detector, task: TaskConfig, index: int, scene: S
 
 def _open_recording(record: Path | None, task: TaskConfig, index: int, scene: Scene, executor: Executor):
     if record is None:
-        from kgn_bench.viz.trial_recording import NO_RECORDING
+        from kgn_bench.bench.trial_recording import NO_RECORDING
 
         return NO_RECORDING
-    from kgn_bench.viz.trial_recording import TrialRecording
+    from kgn_bench.bench.trial_recording import TrialRecording
 
     return TrialRecording(record, f"{task.name}/trial_{index:05d}", scene.model, scene.data, executor, RECORD_EVERY)
 

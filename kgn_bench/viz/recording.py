@@ -28,7 +28,7 @@ Body names may contain ``/`` (dm_control prefixes such as ``robot/link3``); each
 (every character outside ``[A-Za-z0-9_-]`` becomes ``_``, collisions get an ``_{id}`` suffix).
 
 The recording's files (merge, copy) and the viewers are in ``viz.rerun_viewer``; what a trial records, in
-``viz.trial_recording``.
+``bench.trial_recording``.
 """
 
 from __future__ import annotations

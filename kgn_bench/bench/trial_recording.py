@@ -12,7 +12,7 @@ import numpy as np
 
 from kgn_bench.bench.records import AttemptRecord
 
-from .recording import Recorder
+from kgn_bench.viz.recording import Recorder
 
 __all__ = ["NO_RECORDING", "TrialRecording"]
 
