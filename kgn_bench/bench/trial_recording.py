@@ -11,7 +11,6 @@ import mujoco
 import numpy as np
 
 from kgn_bench.bench.records import AttemptRecord
-
 from kgn_bench.viz.recording import Recorder
 
 __all__ = ["NO_RECORDING", "TrialRecording"]
