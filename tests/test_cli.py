@@ -195,3 +195,68 @@ def test_a_bundled_task_runs_by_name_from_anywhere(tmp_path, monkeypatch, capsys
     monkeypatch.chdir(tmp_path)
     assert main(["run", "ci_oracle", "--detector", "oracle", "--trials", "1", "--out", "r", "--quiet"]) == 0
     assert "# ci_oracle: oracle" in capsys.readouterr().out
+
+
+# -- user errors and defects: only a KGNBenchError is one line; anything else is a bug with its traceback ----
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["run", "{tmp}/missing.toml", "--detector", "oracle"], "no such task file"),
+        (["run", "{tmp}/bad.toml", "--detector", "oracle"], "needs 'protocol'"),
+        (["run", CI_TASK, "--detector", "oracle", "--address", "10.0.0.1:6379", "--out", "{tmp}/r"],
+         "--address and --num-gpus need --backend ray"),
+        (["run", CI_TASK, "--detector", "nope", "--out", "{tmp}/r"], "unknown detector 'nope'"),
+        (["ship", "{tmp}/bad.pt", "--name", "x", "--out", "{tmp}/w"], "not a readable checkpoint"),
+        (["eval", "vision", "--weights", "kgnv2", "--variant", "bogus", "--data", "{tmp}"], "unknown variant 'bogus'"),
+        (["objects", "show", "teapot_x", "--out", "{tmp}/o.png"], "unknown object 'teapot_x'"),
+        (["data", "generate", "--mode", "single", "--objects", "teapot_x", "--out", "{tmp}/g"],
+         "unknown object 'teapot_x'"),
+        (["objects", "check-labeller", "--shapes", "teapot_x", "--out", "{tmp}/l"], "unknown primitive 'teapot_x'"),
+        (["perf", "detector", "--variant", "oracle"], "is privileged"),
+        (["check", "{tmp}/no_run", "--baseline", "{tmp}/b.json"], "summary.json not found"),
+    ],
+)
+def test_bad_inputs_are_one_line_and_exit_2(argv, fragment, tmp_path, capsys):
+    (tmp_path / "bad.toml").write_text("[task]\nname = 'x'\n")
+    (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
+    assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("kgn-bench: error:") and fragment in err
+
+
+def test_a_bare_value_error_is_a_bug_not_a_user_error(tmp_path, monkeypatch):
+    """A ValueError from numerical code is not turned into a one-line user error: it goes through ``main``."""
+    from kgn_bench.eval import pnp_noise
+
+    def broken(*args, **kwargs):
+        raise ValueError("planted bug in the PnP solver")
+
+    monkeypatch.setattr(pnp_noise, "solve_box_pnp_batch", broken)
+    with pytest.raises(ValueError, match="planted bug"):
+        main(["study", "pnp-noise", "--samples", "5", "--sigmas", "1", "--out", str(tmp_path / "f")])
+
+
+def test_a_bug_shows_its_traceback_and_a_nonzero_exit_from_the_console_script(tmp_path):
+    out = str(tmp_path / "f")
+    code = ("import sys\n"
+            "from kgn_bench.eval import pnp_noise\n"
+            "def broken(*a, **k):\n"
+            "    raise ValueError('planted bug in the PnP solver')\n"
+            "pnp_noise.solve_box_pnp_batch = broken\n"
+            "from kgn_bench.cli import main\n"
+            f"sys.exit(main(['study', 'pnp-noise', '--samples', '5', '--sigmas', '1', '--out', {out!r}]))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, stdin=subprocess.DEVNULL)
+    assert proc.returncode == 1
+    assert "Traceback (most recent call last)" in proc.stderr and "in broken" in proc.stderr
+    assert proc.stderr.rstrip().splitlines()[-1] == "ValueError: planted bug in the PnP solver"
+    assert "kgn-bench: error" not in proc.stderr
+
+
+def test_the_package_runs_as_a_module_and_help_loads_nothing_heavy():
+    code = ("import sys, kgn_bench.cli; kgn_bench.cli.build_parser(); "
+            "print(','.join(m for m in ('torch', 'mujoco', 'numpy', 'cv2', 'trimesh') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == ""
+    proc = subprocess.run([sys.executable, "-m", "kgn_bench.cli", "eval", "trial", "--help"], capture_output=True,
+                          text=True, check=True)
+    assert "--attempt" in proc.stdout and proc.stdout.startswith("usage: kgn-bench eval trial")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import errno
 import sys
 
 from . import benchmark, data, evaluation, objects, perf, replay, run, studies, train
@@ -24,10 +23,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run one command. SIGTERM and SIGHUP stop it as Ctrl-C does (exit 128 + the signal, 130 for Ctrl-C),
-    with its workers (``kgn_bench.lifecycle``). Every error a user can cause ends here as one line and exit
-    status 2: the project's
-    own (``KGNBenchError``), the operating system's (``OSError``: a path that cannot be read or written, a
-    full disk) and bad argument values (``ValueError``). Status 1 is kept for ``check``'s regression."""
+    with its workers (``kgn_bench.lifecycle``). Every error a user can cause is a ``KGNBenchError``
+    (``kgn_bench.errors``) and ends here as one line and exit status 2; any other exception is a defect of
+    the project and goes through with its traceback (exit status 1, Python's). Status 1 is also ``check``'s
+    regression."""
     from kgn_bench.errors import KGNBenchError
     from kgn_bench.lifecycle import Stopped, interrupts_as_keyboard
 
@@ -43,11 +42,6 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except KGNBenchError as e:
         return fail(str(e).splitlines()[0] if str(e) else type(e).__name__)
-    except OSError as e:
-        reason = "disk full" if e.errno == errno.ENOSPC else (e.strerror or type(e).__name__)
-        return fail(f"{e.filename}: {reason}" if e.filename else reason)
-    except ValueError as e:
-        return fail(str(e).splitlines()[0])
     finally:
         if "kgn_bench.cluster" in sys.modules:  # leave Ray now: its exit hook would first wait 0.5 s for logs
             sys.modules["kgn_bench.cluster"].shutdown()

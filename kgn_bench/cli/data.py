@@ -24,14 +24,15 @@ def _object_names(items: list[str]) -> list[str]:
     from kgn_bench.objects.pybullet_set import ensure_objects
     from kgn_bench.shapes import is_known
     from kgn_bench.shapes.library import OBJECT_SETS, packaged, set_names
+    from kgn_bench.shapes.mesh_object import ObjectError
 
     names: list[str] = []
     for item in items:
         names += set_names(item) if item in OBJECT_SETS else [item]
     for n in names:
         if not (is_known(n) or packaged(n)):
-            raise ValueError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
-                             "(kgn-bench objects list)")
+            raise ObjectError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
+                              "(kgn-bench objects list)")
     ensure_objects(names)
     return list(dict.fromkeys(names))
 
