@@ -12,8 +12,7 @@ __all__ = ["add"]
 
 def add(sub) -> None:
     """The ``replay`` command."""
-    for add_command in (_add_replay,):
-        add_command(sub)
+    _add_replay(sub)
 
 
 def _add_replay(sub) -> None:

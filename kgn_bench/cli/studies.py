@@ -15,8 +15,7 @@ def add(sub) -> None:
     """The ``study`` command group and ``experiment``."""
     st = sub.add_parser("study", help="synthetic studies")
     ssub = st.add_subparsers(dest="study_command", required=True, parser_class=Parser)
-    for add_command in (_add_pnp_noise,):
-        add_command(ssub)
+    _add_pnp_noise(ssub)
     _add_experiment(sub)
 
 
