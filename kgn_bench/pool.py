@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
-from kgn_bench.errors import KGNBenchError
+from kgn_bench.errors import InputError, KGNBenchError
 from kgn_bench.lifecycle import start_worker, stop_workers
 
 __all__ = ["BACKENDS", "LOCAL", "Backend", "PoolError", "run_jobs"]
@@ -50,9 +50,9 @@ class Backend:
 
     def __post_init__(self) -> None:
         if self.kind not in BACKENDS:
-            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {self.kind!r}")
+            raise InputError(f"backend must be one of {', '.join(BACKENDS)}, got {self.kind!r}")
         if self.kind == "local" and (self.address or self.num_gpus):
-            raise ValueError("--address and --num-gpus need --backend ray")
+            raise InputError("--address and --num-gpus need --backend ray")
         if self.num_cpus <= 0 or self.num_gpus < 0:
             raise ValueError("num_cpus must be > 0 and num_gpus ≥ 0")
 

@@ -8,7 +8,13 @@ from kgn_bench.bench.selector import score_candidates
 from kgn_bench.camera import REALSENSE, orbit_pose
 from kgn_bench.config import SelectorConfig
 from kgn_bench.detectors import Candidates, Detector, DetectorError, Observation, make_detector
-from kgn_bench.detectors.antipodal import AntipodalDetector, _extent, _lowest_box_z, estimate_normals
+from kgn_bench.detectors.antipodal import (
+    AntipodalConfig,
+    AntipodalDetector,
+    _extent,
+    _lowest_box_z,
+    estimate_normals,
+)
 from kgn_bench.geometry import backproject, make_pose, matrix_from_quat_wxyz, rot_z
 from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
 from kgn_bench.shapes.primitives import Cuboid, Stick
@@ -45,7 +51,7 @@ def stick_obs():
 
 
 def _detect(obs, seed=(0, 0), **kw):
-    det = AntipodalDetector(**kw)
+    det = AntipodalDetector(AntipodalConfig(**kw))
     det.reset(list(seed))
     return det.detect(obs)
 

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from kgn_bench.data.generate import TIMING_KEYS, GenerateConfig, generate_dataset
-from kgn_bench.errors import KGNBenchError
+from kgn_bench.errors import InputError, KGNBenchError
 
 __all__ = ["PerfError", "perf_backends", "perf_data", "perf_detector", "perf_import", "perf_run"]
 
@@ -221,7 +221,7 @@ def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, fra
     torch.set_num_threads(threads)
     det = KGNDetector(variant, weights) if variant in LEARNED else make_detector(variant, weights)
     if det.privileged:
-        raise ValueError(f"detector {variant!r} is privileged (it needs the simulator): time it with perf run")
+        raise InputError(f"detector {variant!r} is privileged (it needs the simulator): time it with perf run")
     observations = _frames(data, frames)
     learned = isinstance(det, KGNDetector)
     times, counts = _time_frames(det, observations, learned)

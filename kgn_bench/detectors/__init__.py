@@ -41,7 +41,11 @@ DETECTORS: dict[str, Callable[..., Detector]] = {
 
 def detector_factory(name: str) -> Callable[..., Detector]:
     """The factory of ``name``: a registered detector, or ``module:attribute`` imported from the Python path;
-    ``ValueError`` naming the problem (unknown name, module that fails to import, missing attribute)."""
+    ``ValueError`` naming the problem (unknown name, module that fails to import, missing attribute).
+
+    A plain ``ValueError``, not a ``KGNBenchError``: every caller re-words it with its context into its own
+    user error (``bench.runner.build_detector``: ``RunError``; ``bench.benchmark.load_plan``: ``ConfigError``
+    naming the plan file), and the runner lets a ``KGNBenchError`` through unchanged."""
     if name in DETECTORS:
         return DETECTORS[name]
     module, sep, attribute = name.partition(":")

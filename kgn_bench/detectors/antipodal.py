@@ -33,7 +33,8 @@ table top is the world plane z = 0. Steps, all vectorised:
 7. near-duplicates (≤ 1 cm, ≤ 15° in either 180° form) removed; the best ``top`` returned, camera frame,
    confidence = score, no reprojection error (NaN).
 
-All randomness (seeds, neighbourhood subsampling) comes from ``reset(seed)``.
+All randomness (seeds, neighbourhood subsampling) comes from ``reset(seed)``. The names in double backquotes
+above are the fields of ``AntipodalConfig`` (``kgn_bench.detectors.antipodal_config``).
 """
 
 from __future__ import annotations
@@ -45,13 +46,13 @@ from kgn_bench.config import ExecutionConfig
 from kgn_bench.geometry import backproject, backproject_strided, frame_from_xz, invert_pose
 from kgn_bench.gripper import GRIPPER
 
+from .antipodal_config import AntipodalConfig
 from .base import Candidates, Observation
 
-__all__ = ["AntipodalDetector", "estimate_normals"]
+__all__ = ["AntipodalConfig", "AntipodalDetector", "estimate_normals"]
 
-"""How far the harness backs off along −approach for the pre-grasp (the default task setting); the clearance
-check sweeps the boxes over it."""
 _BIN = 0.003
+"""Bin size along the closing axis when measuring an object part's extent (``_extent``)."""
 _GAP = GRIPPER.finger_thickness + 0.005
 """A gap along the closing axis at least this wide ends an object part: a finger fits into it."""
 
@@ -115,45 +116,15 @@ def _perp_basis(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class AntipodalDetector:
-    """Antipodal grasp sampling on the observed point cloud (see the module docstring).
-
-    Lengths in metres. ``stride``: pixel step of the cloud; ``seeds``, ``approaches``, ``closings``: the
-    sampling; ``neighbours`` within ``radius``: each seed's neighbourhood; ``min_height`` /
-    ``collision_height``: object / obstacle points above the table; ``depth``: fingertips past the first
-    surface (at least ``min_depth``); ``margin``: per side between the object and an open finger;
-    ``min_width``: the narrowest width returned; ``table_clearance``: the lowest any gripper box may go;
-    ``push``: how far the harness may move a grasp on along its approach; ``cone_deg``: friction cone;
-    ``min_enclosed``: points between the fingers; ``top``: candidates returned; ``chunk``: frames
-    evaluated at once (memory).
-    """
+    """Antipodal grasp sampling on the observed point cloud (see the module docstring), with the settings of
+    ``config`` (default ``AntipodalConfig()``)."""
 
     name = "antipodal"
     privileged = False
 
-    def __init__(self, stride: int = 2, seeds: int = 160, approaches: int = 5, closings: int = 6,
-                 neighbours: int = 900, radius: float = 0.2, min_height: float = 0.005,
-                 collision_height: float = 0.002, depth: float = GRIPPER.finger_length - 0.02,
-                 min_depth: float = 0.004, margin: float = 0.008, min_width: float = 0.02,
-                 table_clearance: float = 0.004, push: float = 0.01, cone_deg: float = 20.0,
-                 min_enclosed: int = 6, top: int = 300, chunk: int = 384) -> None:
-        self.stride = stride
-        self.seeds = seeds
-        self.approaches = approaches
-        self.closings = closings
-        self.neighbours = neighbours
-        self.radius = radius
-        self.min_height = min_height
-        self.collision_height = collision_height
-        self.depth = depth
-        self.min_depth = min_depth
-        self.margin = margin
-        self.min_width = min_width
-        self.table_clearance = table_clearance
-        self.push = push
-        self.cone = np.deg2rad(cone_deg)
-        self.min_enclosed = min_enclosed
-        self.top = top
-        self.chunk = chunk
+    def __init__(self, config: AntipodalConfig | None = None) -> None:
+        self.config = AntipodalConfig() if config is None else config
+        self.cone = np.deg2rad(self.config.cone_deg)
         self.pregrasp_distance = ExecutionConfig().pregrasp_distance
         self._rng = np.random.default_rng(0)
 
@@ -169,7 +140,7 @@ class AntipodalDetector:
     def _cloud(self, obs: Observation) -> dict[str, np.ndarray] | None:
         """Obstacle points (every ``stride``-th pixel above ``collision_height``) with, for the object
         points among them, world normals (estimated at full resolution) and component labels."""
-        s = self.stride
+        cfg, s = self.config, self.config.stride
         depth = obs.depth.astype(np.float64)
         K, T = obs.intrinsics.K, obs.camera_pose
         h, w = depth.shape
@@ -177,25 +148,12 @@ class AntipodalDetector:
         ray_y = (np.arange(h) - K[1, 2]) / K[1, 1]
         height = depth * (T[2, 0] * ray_x[None] + T[2, 1] * ray_y[:, None] + T[2, 2]) + T[2, 3]
         valid = depth > 0
-        obj = valid & (height > self.min_height)
-        keep = valid[::s, ::s] & (height[::s, ::s] > self.collision_height)
+        obj = valid & (height > cfg.min_height)
+        keep = valid[::s, ::s] & (height[::s, ::s] > cfg.collision_height)
         obj_s = obj[::s, ::s]
-        if np.count_nonzero(obj_s) < self.min_enclosed:
+        if np.count_nonzero(obj_s) < cfg.min_enclosed:
             return None
-        # normals on the objects' bounding box at full resolution (crop aligned to the stride grid)
-        rows, cols = np.flatnonzero(obj.any(1)), np.flatnonzero(obj.any(0))
-        r0, c0 = max(rows[0] - 2, 0) // s * s, max(cols[0] - 2, 0) // s * s
-        r1, c1 = min(rows[-1] + 3, h), min(cols[-1] + 3, w)
-        Kc = K.copy()
-        Kc[0, 2] -= c0
-        Kc[1, 2] -= r0
-        n, ok = estimate_normals(backproject(depth[r0:r1, c0:c1], Kc), obj[r0:r1, c0:c1])
-        n, ok, coherent = _smooth_normals(n, ok)
-        normals = np.zeros((*obj_s.shape, 3))
-        has_normal = np.zeros(obj_s.shape, dtype=bool)
-        smooth = np.zeros(obj_s.shape, dtype=bool)
-        sub = (slice(r0 // s, r0 // s + n[::s, ::s].shape[0]), slice(c0 // s, c0 // s + n[::s, ::s].shape[1]))
-        normals[sub], has_normal[sub], smooth[sub] = n[::s, ::s], ok[::s, ::s], coherent[::s, ::s]
+        normals, has_normal, smooth = _strided_normals(depth, K, obj, s)
         _, labels = cv2.connectedComponents(obj_s.astype(np.uint8), connectivity=8)
         pc = backproject_strided(obs.depth, K, s)[keep]
         return {
@@ -209,68 +167,61 @@ class AntipodalDetector:
 
     # -- candidates ------------------------------------------------------------------------------
     def detect(self, observation: Observation) -> Candidates:
+        """Candidates in the camera frame (``Candidates``: grasp poses T_camera_grasp, widths, scores as
+        confidences), best first; empty when the cloud holds no object or no coherent seed."""
         observation.validate()
         cloud = self._cloud(observation)
         if cloud is None:
             return Candidates.empty()
-        rng = self._rng
-        pts, nrm, lab = cloud["points"], cloud["normals"], cloud["label"]
-        is_obj = cloud["object"]
+        pts, lab, is_obj = cloud["points"], cloud["label"], cloud["object"]
         seedable = np.flatnonzero(is_obj & cloud["coherent"])
         if len(seedable) == 0:
             return Candidates.empty()
-        seeds = np.sort(rng.choice(seedable, size=min(self.seeds, len(seedable)), replace=False))
-        p, n = pts[seeds], nrm[seeds]
-
-        # neighbourhoods: up to `neighbours` random points within `radius` of each seed
-        q = pts.astype(np.float32)
-        d2 = np.sum(q**2, axis=1)[None] - 2.0 * (p.astype(np.float32) @ q.T) + np.sum(p**2, axis=1)[:, None]
-        key = np.where(d2 < self.radius**2, rng.random(d2.shape), np.inf)
-        k = min(self.neighbours, pts.shape[0])
-        nb = np.argpartition(key, k - 1, axis=1)[:, :k] if k < pts.shape[0] else np.tile(np.arange(k), (len(p), 1))
-        nb_ok = np.isfinite(np.take_along_axis(key, nb, axis=1))
-
+        seeds = np.sort(self._rng.choice(seedable, size=min(self.config.seeds, len(seedable)), replace=False))
+        p, n = pts[seeds], cloud["normals"][seeds]
+        nb, nb_ok = self._neighbourhoods(pts, p)
         cen, major, aniso = _footprints(pts[is_obj], lab[is_obj], int(lab.max()) + 1)
-
-        # frames: family A (closing along the normal), family B (approach along −normal)
-        e1, e2 = _perp_basis(n)
-        ta = np.deg2rad(np.linspace(-70.0, 70.0, self.approaches)) if self.approaches > 1 else np.zeros(1)
-        xa = np.cos(ta)[None, :, None] * e1[:, None] + np.sin(ta)[None, :, None] * e2[:, None]
-        za = np.broadcast_to(n[:, None], xa.shape)
-        ra = frame_from_xz(xa, za)
-        ok_a = (np.abs(n[:, 2]) < 0.85)[:, None] & (xa[..., 2] < 0.3)
-        xb = -n
-        f1, f2 = _perp_basis(xb)
-        tb = np.pi * np.arange(self.closings) / self.closings
-        zb = np.cos(tb)[None, :, None] * f1[:, None] + np.sin(tb)[None, :, None] * f2[:, None]
-        rb = frame_from_xz(np.broadcast_to(xb[:, None], zb.shape), zb)
-        ok_b = np.broadcast_to((xb[:, 2] < 0.3)[:, None], zb.shape[:2])
-        R = np.concatenate([ra, rb], axis=1).reshape(-1, 3, 3)
-        seed_of = np.repeat(np.arange(len(p)), ra.shape[1] + rb.shape[1])
-        alive = np.concatenate([ok_a, ok_b], axis=1).reshape(-1)
-        R, seed_of = R[alive], seed_of[alive]
-
+        R, seed_of = _seed_frames(n, self.config.approaches, self.config.closings)
         local = {
             "rel": (pts[nb] - p[:, None]).astype(np.float32),
-            "normals": nrm[nb].astype(np.float32),
+            "normals": cloud["normals"][nb].astype(np.float32),
             "ok": nb_ok,
             "same": nb_ok & is_obj[nb] & (lab[nb] == lab[seeds][:, None]),
         }
         obj_of = lab[seeds]
         cam_pos = observation.camera_pose[:3, 3]
+        chunk = self.config.chunk
         with np.errstate(invalid="ignore"):
-            out = [self._evaluate(R[i:i + self.chunk], seed_of[i:i + self.chunk], p, local, cen[obj_of],
-                                  major[obj_of], aniso[obj_of], cam_pos)
-                   for i in range(0, len(R), self.chunk)]
+            out = [self._evaluate(R[i:i + chunk], seed_of[i:i + chunk], p, local, cen[obj_of], major[obj_of],
+                                  aniso[obj_of], cam_pos)
+                   for i in range(0, len(R), chunk)]
+        return self._best(out, observation.camera_pose)
+
+    def _neighbourhoods(self, pts: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per seed ``p`` (M, 3), the indices (M, k) of up to ``neighbours`` random points of ``pts`` (world)
+        within ``radius`` (squared distances |q|² − 2 p·q + |p|² in float32), and which of them are (an index
+        is a filler where fewer points are within reach)."""
+        cfg = self.config
+        q = pts.astype(np.float32)
+        d2 = np.sum(q**2, axis=1)[None] - 2.0 * (p.astype(np.float32) @ q.T) + np.sum(p**2, axis=1)[:, None]
+        key = np.where(d2 < cfg.radius**2, self._rng.random(d2.shape), np.inf)
+        k = min(cfg.neighbours, pts.shape[0])
+        nb = np.argpartition(key, k - 1, axis=1)[:, :k] if k < pts.shape[0] else np.tile(np.arange(k), (len(p), 1))
+        return nb, np.isfinite(np.take_along_axis(key, nb, axis=1))
+
+    def _best(self, out: list[tuple[np.ndarray, np.ndarray, np.ndarray]], camera_pose: np.ndarray) -> Candidates:
+        """The evaluated chunks ``out`` (world poses, widths, scores) sorted by score, near-duplicates removed
+        (≤ 1 cm, ≤ 15°), the best ``top`` as camera-frame candidates T_camera_grasp = T_world_camera⁻¹ ·
+        T_world_grasp."""
         poses = np.concatenate([o[0] for o in out]) if out else np.zeros((0, 4, 4))
         widths = np.concatenate([o[1] for o in out]) if out else np.zeros(0)
         scores = np.concatenate([o[2] for o in out]) if out else np.zeros(0)
         if len(poses) == 0:
             return Candidates.empty()
         order = np.argsort(-scores, kind="stable")
-        keep = _dedupe(poses[order], distance=0.01, angle=np.deg2rad(15.0))[: self.top]
+        keep = _dedupe(poses[order], distance=0.01, angle=np.deg2rad(15.0))[: self.config.top]
         idx = order[keep]
-        cam = invert_pose(observation.camera_pose) @ poses[idx]
+        cam = invert_pose(camera_pose) @ poses[idx]
         return Candidates(cam, widths[idx], scores[idx], np.full(len(idx), np.nan))
 
     def _evaluate(self, R, seed_of, p, local, cen, major, aniso, cam_pos):
@@ -278,85 +229,166 @@ class AntipodalDetector:
         each seed's neighbourhood ``local`` (positions relative to the seed, normals, valid and same-object
         masks, (M, K, ...)) and, per seed, its object's centroid, footprint axis and anisotropy. Candidates
         are dropped as soon as a stage rejects them, so later stages see fewer rows."""
-        g = GRIPPER
-        fl, half_b = g.finger_length, g.finger_breadth / 2.0
         loc = local["rel"][seed_of] @ R.astype(np.float32)  # (G, K, 3): grasp-axis coordinates from the seed
         a, b, c = loc[..., 0], loc[..., 1], loc[..., 2]
-        same = local["same"][seed_of]
-        slab = np.abs(b) <= half_b
-
+        inside = local["same"][seed_of] & (np.abs(b) <= GRIPPER.finger_breadth / 2.0)  # same object, finger slab
         # 1. extent along the closing axis: the run of occupied bins around the seed, ended by finger-sized gaps
-        col = same & slab & (np.abs(a) <= fl)
-        c_lo, c_hi = _extent(c, col, g.max_width)
-        a_min = np.where(col & (c >= c_lo[:, None]) & (c <= c_hi[:, None]), a, np.inf).min(1)
-        w1 = c_hi - c_lo + 2 * self.margin
-        keep = np.isfinite(a_min) & (w1 <= g.max_width - g.open_margin)
-        R, seed_of, a, b, c, same, slab, c_lo, c_hi, a_min, w1 = _rows(
-            keep, R, seed_of, a, b, c, same, slab, c_lo, c_hi, a_min, w1)
-
+        keep, c_lo, c_hi, a_min, w1 = self._closing_extent(a, c, inside)
+        R, seed_of, a, b, c, inside, c_lo, c_hi, a_min, w1 = _rows(
+            keep, R, seed_of, a, b, c, inside, c_lo, c_hi, a_min, w1)
         # 2. fingertip depth: `depth` past the first surface, less where the fingers would reach the table
-        xz, yz, zz = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
-        w_open1 = g.opening(w1)
-        low_rel = np.minimum(-fl * xz, 0.0) - np.abs(yz) * half_b - np.abs(zz) * (w_open1 / 2 + g.finger_thickness)
         pz = p[seed_of, 2]
-        limit = (self.table_clearance - low_rel - pz - zz * 0.5 * (c_hi + c_lo)) / np.where(xz < -1e-6, xz, -1.0)
-        a_tip = np.where(xz < -1e-6, np.minimum(a_min + self.depth, limit), a_min + self.depth)
-
+        a_tip = self._fingertip_depth(R, pz, a_min, c_lo, c_hi, w1)
         # 3. re-measure inside the closing region
-        reg = same & slab & (a >= (a_tip - fl)[:, None]) & (a <= a_tip[:, None]) & \
-            (c >= (c_lo - 1e-3)[:, None]) & (c <= (c_hi + 1e-3)[:, None])
-        n_enc = reg.sum(1)
-        c_hi = np.where(reg, c, -np.inf).max(1)
-        c_lo = np.where(reg, c, np.inf).min(1)
-        width = np.maximum(c_hi - c_lo + 2 * self.margin, self.min_width)
-        c_mid = 0.5 * (c_hi + c_lo)
-        w_open = g.opening(width)
-        keep = (a_tip >= a_min + self.min_depth) & (n_enc >= self.min_enclosed)
-        lowest = _lowest_box_z(pz + xz * a_tip + zz * c_mid, R, w_open, self.pregrasp_distance)
-        keep &= lowest >= self.table_clearance - 1e-6
-        R, seed_of, a, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, w_open, n_enc = _rows(
-            keep, R, seed_of, a, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, w_open, n_enc)
-
+        keep, reg, c_lo, c_hi, c_mid, width, w_open = self._closing_region(R, pz, a, c, inside, a_tip, a_min,
+                                                                           c_lo, c_hi)
+        R, seed_of, a, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, w_open = _rows(
+            keep, R, seed_of, a, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, w_open)
         # 4. clearance: no obstacle point in the fingers, palm or wrist, swept from the pre-grasp to the push
-        u = a - a_tip[:, None]
-        at = np.abs(c - c_mid[:, None])
-        ab = np.abs(b)
-        eps, back = 0.0015, self.pregrasp_distance
-        hw = (w_open / 2)[:, None]
-        hit = (u >= -fl - back - eps) & (u <= self.push + eps) & (ab <= half_b + eps) & \
-            (at >= hw - eps) & (at <= hw + g.finger_thickness + eps)
-        for box in (g.palm_box(), g.wrist_box()):
-            lo = box.centre[0] - box.half[0] - back
-            hi = box.centre[0] + box.half[0] + self.push
-            hit |= (u >= lo - eps) & (u <= hi + eps) & (ab <= box.half[1] + eps) & (at <= box.half[2] + eps)
-        keep = ~np.any(hit & local["ok"][seed_of], axis=1)
-        R, seed_of, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, n_enc = _rows(
-            keep, R, seed_of, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width, n_enc)
-
+        keep = self._clear(a - a_tip[:, None], np.abs(b), np.abs(c - c_mid[:, None]), w_open, local["ok"][seed_of])
+        R, seed_of, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width = _rows(
+            keep, R, seed_of, b, c, reg, a_tip, a_min, c_lo, c_hi, c_mid, width)
         # 5. score, each term in [0, 1]
-        xaxis, zaxis = R[:, :, 0], R[:, :, 2]
-        nz = (local["normals"][seed_of] @ zaxis[:, :, None].astype(np.float32))[..., 0]
-        al_hi = np.where(reg & (c >= (c_hi - 0.004)[:, None]), nz, -1.0).max(1)
-        al_lo = np.where(reg & (c <= (c_lo + 0.004)[:, None]), -nz, -1.0).max(1)
-        c0 = np.cos(2.0 * self.cone)
-        antipodal = 0.5 * (np.clip((al_hi - c0) / (1.0 - c0), 0.0, 1.0) + np.clip((al_lo - c0) / (1.0 - c0), 0.0, 1.0))
-        origin = p[seed_of] + xaxis * a_tip[:, None] + zaxis * c_mid[:, None]
-        up = 0.5 * (1.0 - xaxis[:, 2])
-        view = origin - cam_pos
-        view /= np.linalg.norm(view, axis=1, keepdims=True)
-        camside = 0.5 * (1.0 + np.sum(xaxis * view, axis=1))
-        centre = 1.0 - np.clip(np.linalg.norm((origin - cen[seed_of])[:, :2], axis=1) / 0.06, 0.0, 1.0)
-        footprint = 1.0 - aniso[seed_of] * np.sum(zaxis[:, :2] * major[seed_of], axis=1) ** 2
-        depth = np.clip((a_tip - a_min) / self.depth, 0.0, 1.0)
-        cover = (np.where(reg, b, -np.inf).max(1) - np.where(reg, b, np.inf).min(1)) / (2 * half_b)
-        cover = np.clip(cover, 0.0, 1.0)
-        score = (0.3 * antipodal + 0.15 * up + 0.15 * centre + 0.15 * footprint + 0.1 * depth + 0.05 * cover
-                 + 0.1 * camside)
+        origin = p[seed_of] + R[:, :, 0] * a_tip[:, None] + R[:, :, 2] * c_mid[:, None]
+        nz = (local["normals"][seed_of] @ R[:, :, 2][:, :, None].astype(np.float32))[..., 0]
+        score = self._score(R, origin, nz, reg, b, c, c_lo, c_hi, a_tip - a_min, cen[seed_of], major[seed_of],
+                            aniso[seed_of], cam_pos)
         poses = np.zeros((len(R), 4, 4))
         poses[:, :3, :3] = R
         poses[:, :3, 3] = origin
         poses[:, 3, 3] = 1.0
         return poses, width, score
+
+    def _closing_extent(self, a, c, inside):
+        """Stage 1 per frame, from the grasp-axis coordinates ``a`` (approach) and ``c`` (closing) of the
+        neighbourhood (G, K) and the mask ``inside`` of its same-object points in the finger slab: the extent
+        [c_lo, c_hi] of the seed's part within a finger length of the seed along the approach (``_extent``),
+        the first surface a_min along the approach in that extent, the width c_hi − c_lo + 2 · margin, and
+        which frames are kept (a surface found, the width fits the gripper's opening)."""
+        g = GRIPPER
+        col = inside & (np.abs(a) <= g.finger_length)
+        c_lo, c_hi = _extent(c, col, g.max_width)
+        a_min = np.where(col & (c >= c_lo[:, None]) & (c <= c_hi[:, None]), a, np.inf).min(1)
+        w1 = c_hi - c_lo + 2 * self.config.margin
+        keep = np.isfinite(a_min) & (w1 <= g.max_width - g.open_margin)
+        return keep, c_lo, c_hi, a_min, w1
+
+    def _fingertip_depth(self, R, pz, a_min, c_lo, c_hi, w1):
+        """Stage 2: the fingertips' coordinate a_tip along the approach, a_min + ``depth``, lowered where the
+        lowest finger point (the fingers at the opening of width ``w1``, centred on the extent) would come
+        closer than ``table_clearance`` to the table; ``pz`` is the seed's world height and R[:, 2] the world
+        z row of the grasp rotations (only an approach going down, x_z < 0, can reach the table)."""
+        g, cfg = GRIPPER, self.config
+        xz, yz, zz = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
+        w_open1 = g.opening(w1)
+        low_rel = (np.minimum(-g.finger_length * xz, 0.0) - np.abs(yz) * (g.finger_breadth / 2.0)
+                   - np.abs(zz) * (w_open1 / 2 + g.finger_thickness))
+        limit = (cfg.table_clearance - low_rel - pz - zz * 0.5 * (c_hi + c_lo)) / np.where(xz < -1e-6, xz, -1.0)
+        return np.where(xz < -1e-6, np.minimum(a_min + cfg.depth, limit), a_min + cfg.depth)
+
+    def _closing_region(self, R, pz, a, c, inside, a_tip, a_min, c_lo, c_hi):
+        """Stage 3: the closing region (``inside`` points between a_tip − finger length and a_tip along the
+        approach, within 1 mm of the extent), its extent [c_lo, c_hi] and middle c_mid re-measured there, the
+        width max(c_hi − c_lo + 2 · margin, min_width) and its opening, and which frames are kept (fingertips
+        at least ``min_depth`` past the surface, ``min_enclosed`` points between the fingers, no gripper box
+        below ``table_clearance``, the box origins at world height pz + x_z · a_tip + z_z · c_mid)."""
+        g, cfg = GRIPPER, self.config
+        reg = inside & (a >= (a_tip - g.finger_length)[:, None]) & (a <= a_tip[:, None]) & \
+            (c >= (c_lo - 1e-3)[:, None]) & (c <= (c_hi + 1e-3)[:, None])
+        n_enc = reg.sum(1)
+        c_hi = np.where(reg, c, -np.inf).max(1)
+        c_lo = np.where(reg, c, np.inf).min(1)
+        width = np.maximum(c_hi - c_lo + 2 * cfg.margin, cfg.min_width)
+        c_mid = 0.5 * (c_hi + c_lo)
+        w_open = g.opening(width)
+        keep = (a_tip >= a_min + cfg.min_depth) & (n_enc >= cfg.min_enclosed)
+        lowest = _lowest_box_z(pz + R[:, 2, 0] * a_tip + R[:, 2, 2] * c_mid, R, w_open, self.pregrasp_distance)
+        keep &= lowest >= cfg.table_clearance - 1e-6
+        return keep, reg, c_lo, c_hi, c_mid, width, w_open
+
+    def _clear(self, u, ab, at, w_open, ok):
+        """Stage 4: which frames have no valid (``ok``) neighbourhood point inside a finger, the palm or the
+        wrist at opening ``w_open``, every box swept from the pre-grasp distance back to ``push`` forward; a
+        point's coordinates relative to the grasp are u = a − a_tip along the approach, |b| across the
+        fingers and |c − c_mid| along the closing axis (1.5 mm of tolerance)."""
+        g = GRIPPER
+        half_b, eps, back, push = g.finger_breadth / 2.0, 0.0015, self.pregrasp_distance, self.config.push
+        hw = (w_open / 2)[:, None]
+        hit = (u >= -g.finger_length - back - eps) & (u <= push + eps) & (ab <= half_b + eps) & \
+            (at >= hw - eps) & (at <= hw + g.finger_thickness + eps)
+        for box in (g.palm_box(), g.wrist_box()):
+            lo = box.centre[0] - box.half[0] - back
+            hi = box.centre[0] + box.half[0] + push
+            hit |= (u >= lo - eps) & (u <= hi + eps) & (ab <= box.half[1] + eps) & (at <= box.half[2] + eps)
+        return ~np.any(hit & ok, axis=1)
+
+    def _score(self, R, origin, nz, reg, b, c, c_lo, c_hi, depth, cen, major, aniso, cam_pos):
+        """Stage 5: the score in [0, 1] of each grasp (world rotation ``R``, world origin ``origin``), the
+        weighted sum of the module docstring's step 6; ``nz`` holds the neighbourhood's normals · closing axis,
+        ``depth`` = a_tip − a_min, ``cen``, ``major``, ``aniso`` the seed's object footprint."""
+        half_b = GRIPPER.finger_breadth / 2.0
+        xaxis, zaxis = R[:, :, 0], R[:, :, 2]
+        al_hi = np.where(reg & (c >= (c_hi - 0.004)[:, None]), nz, -1.0).max(1)
+        al_lo = np.where(reg & (c <= (c_lo + 0.004)[:, None]), -nz, -1.0).max(1)
+        c0 = np.cos(2.0 * self.cone)
+        antipodal = 0.5 * (np.clip((al_hi - c0) / (1.0 - c0), 0.0, 1.0) + np.clip((al_lo - c0) / (1.0 - c0), 0.0, 1.0))
+        up = 0.5 * (1.0 - xaxis[:, 2])
+        view = origin - cam_pos
+        view /= np.linalg.norm(view, axis=1, keepdims=True)
+        camside = 0.5 * (1.0 + np.sum(xaxis * view, axis=1))
+        centre = 1.0 - np.clip(np.linalg.norm((origin - cen)[:, :2], axis=1) / 0.06, 0.0, 1.0)
+        footprint = 1.0 - aniso * np.sum(zaxis[:, :2] * major, axis=1) ** 2
+        depth = np.clip(depth / self.config.depth, 0.0, 1.0)
+        cover = (np.where(reg, b, -np.inf).max(1) - np.where(reg, b, np.inf).min(1)) / (2 * half_b)
+        cover = np.clip(cover, 0.0, 1.0)
+        return (0.3 * antipodal + 0.15 * up + 0.15 * centre + 0.15 * footprint + 0.1 * depth + 0.05 * cover
+                + 0.1 * camside)
+
+
+def _strided_normals(depth: np.ndarray, K: np.ndarray, obj: np.ndarray, s: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Camera-frame normals, where they are defined and where coherent, on the ``s``-strided pixel grid of the
+    planar ``depth`` (intrinsics ``K``), estimated at full resolution on the bounding box of the object pixels
+    ``obj`` (the crop's origin aligned to the stride grid, ``K``'s principal point moved with it)."""
+    h, w = depth.shape
+    obj_s = obj[::s, ::s]
+    rows, cols = np.flatnonzero(obj.any(1)), np.flatnonzero(obj.any(0))
+    r0, c0 = max(rows[0] - 2, 0) // s * s, max(cols[0] - 2, 0) // s * s
+    r1, c1 = min(rows[-1] + 3, h), min(cols[-1] + 3, w)
+    Kc = K.copy()
+    Kc[0, 2] -= c0
+    Kc[1, 2] -= r0
+    n, ok = estimate_normals(backproject(depth[r0:r1, c0:c1], Kc), obj[r0:r1, c0:c1])
+    n, ok, coherent = _smooth_normals(n, ok)
+    normals = np.zeros((*obj_s.shape, 3))
+    has_normal = np.zeros(obj_s.shape, dtype=bool)
+    smooth = np.zeros(obj_s.shape, dtype=bool)
+    sub = (slice(r0 // s, r0 // s + n[::s, ::s].shape[0]), slice(c0 // s, c0 // s + n[::s, ::s].shape[1]))
+    normals[sub], has_normal[sub], smooth[sub] = n[::s, ::s], ok[::s, ::s], coherent[::s, ::s]
+    return normals, has_normal, smooth
+
+
+def _seed_frames(n: np.ndarray, approaches: int, closings: int) -> tuple[np.ndarray, np.ndarray]:
+    """The world grasp rotations (G, 3, 3) at seeds of world normals ``n`` (M, 3) and each one's seed index:
+    family A closes along the normal (z = n) with ``approaches`` approach axes x over ±70° around the most
+    downward one (kept where the normal is not near vertical, |n_z| < 0.85, and x_z < 0.3); family B approaches
+    along −n (kept where −n_z < 0.3) with ``closings`` closing axes over 180°. Seed by seed, A before B."""
+    e1, e2 = _perp_basis(n)
+    ta = np.deg2rad(np.linspace(-70.0, 70.0, approaches)) if approaches > 1 else np.zeros(1)
+    xa = np.cos(ta)[None, :, None] * e1[:, None] + np.sin(ta)[None, :, None] * e2[:, None]
+    za = np.broadcast_to(n[:, None], xa.shape)
+    ra = frame_from_xz(xa, za)
+    ok_a = (np.abs(n[:, 2]) < 0.85)[:, None] & (xa[..., 2] < 0.3)
+    xb = -n
+    f1, f2 = _perp_basis(xb)
+    tb = np.pi * np.arange(closings) / closings
+    zb = np.cos(tb)[None, :, None] * f1[:, None] + np.sin(tb)[None, :, None] * f2[:, None]
+    rb = frame_from_xz(np.broadcast_to(xb[:, None], zb.shape), zb)
+    ok_b = np.broadcast_to((xb[:, 2] < 0.3)[:, None], zb.shape[:2])
+    R = np.concatenate([ra, rb], axis=1).reshape(-1, 3, 3)
+    seed_of = np.repeat(np.arange(len(n)), ra.shape[1] + rb.shape[1])
+    alive = np.concatenate([ok_a, ok_b], axis=1).reshape(-1)
+    return R[alive], seed_of[alive]
 
 
 def _rows(keep: np.ndarray, *arrays: np.ndarray) -> list[np.ndarray]:

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from kgn_bench.camera import REALSENSE
+from kgn_bench.errors import InputError
 from kgn_bench.grasp import grasp_rotation_error, keypoints_in_frame
 from kgn_bench.io import atomic_write_text
 from kgn_bench.model.decode import solve_box_pnp_batch
@@ -51,11 +52,11 @@ class PnpNoiseConfig:
 
     def __post_init__(self) -> None:
         if not self.distances or not all(d > 0.0 and math.isfinite(d) for d in self.distances):
-            raise ValueError(f"distances must be positive, got {self.distances}")
+            raise InputError(f"distances must be positive, got {self.distances}")
         if not self.sigmas or not all(s >= 0.0 and math.isfinite(s) for s in self.sigmas):
-            raise ValueError(f"noise levels must be non-negative, got {self.sigmas}")
+            raise InputError(f"noise levels must be non-negative, got {self.sigmas}")
         if int(self.samples) != self.samples or self.samples < 1:
-            raise ValueError(f"samples must be a positive integer, got {self.samples}")
+            raise InputError(f"samples must be a positive integer, got {self.samples}")
 
 
 @dataclass(frozen=True)

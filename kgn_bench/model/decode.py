@@ -165,32 +165,21 @@ def decode(
     (H, W) planar metres of the original image (needed when ``variant.needs_depth``, ignored otherwise).
     Candidate keypoints are the predicted image pixels in canonical order (L, R, TL, TR). ``timing``, if
     given, receives the seconds spent in PnP under ``"pnp"``.
+
+    Steps: the ``top_k`` heatmap peaks over ``score_threshold`` (``_top_k``); their keypoints, centres,
+    widths and scales in output pixels (``_read_peaks``); keypoints whose orientation bin is not the peak's
+    dropped (``orientation_filter``); keypoints and centres mapped back to image pixels by M⁻¹; the box pose
+    from IPPE PnP (``_solve_poses``); its translation rescaled to the predicted or observed distance
+    (``_rescale_translations``); the candidates still kept returned.
     """
     config = config or DecodeConfig()
     m = _check_maps(maps, variant)
-    K = np.asarray(K, dtype=float)
-    if K.shape != (3, 3) or not np.all(np.isfinite(K)):
-        raise ValueError(f"K must be a finite 3×3 matrix, got shape {K.shape}")
-    M_inv = invert_affine(M)
-    if variant.needs_depth:
-        if depth is None:
-            raise ValueError(f"variant {variant.name} needs the depth image")
-        depth = np.asarray(depth)
-        if depth.ndim != 2 or depth.size == 0 or not np.issubdtype(depth.dtype, np.floating):
-            raise ValueError(f"depth must be a non-empty (H, W) float image in metres, got {depth.shape} {depth.dtype}")
+    K, M_inv, depth = _check_inputs(K, M, depth, variant)
 
-    _, ho, wo = m["hm"].shape
     flat, scores = _top_k(m["hm"], int(config.top_k), config.score_threshold)
     if flat.size == 0:
         return Candidates.empty()
-    c, rest = np.divmod(flat, ho * wo)
-    y, x = np.divmod(rest, wo)
-    cell = np.stack([x, y], axis=1).astype(float)
-    offsets = m["kpts"][8 * c[:, None] + np.arange(8), y[:, None], x[:, None]].astype(float)
-    kp_out = cell[:, None, :] + offsets.reshape(-1, 4, 2)
-    centre_out = cell + m["reg"][:, y, x].T.astype(float)
-    widths = np.maximum(m["width"][c, y, x].astype(float), 0.0)
-    scale = m["scale"][c, y, x].astype(float) if variant.translation == "scale" else None
+    c, kp_out, centre_out, widths, scale = _read_peaks(m, flat, variant)
 
     keep = np.ones(len(c), dtype=bool)
     if config.orientation_filter:
@@ -198,28 +187,9 @@ def decode(
     kp_img = apply_affine(M_inv, kp_out)
     centre_img = apply_affine(M_inv, centre_out)
 
-    poses = np.repeat(np.eye(4)[None], len(c), axis=0)
-    errors = np.full(len(c), np.nan)
-    t0 = time.perf_counter()
-    poses[keep], errors[keep], solved = solve_box_pnp_batch(kp_img[keep], K)
-    if timing is not None:
-        timing["pnp"] = time.perf_counter() - t0
-    keep[keep] = solved
-
+    poses, errors = _solve_poses(kp_img, K, keep, timing)
     if variant.translation != "pnp":
-        observed = np.full(len(c), np.nan)
-        if variant.needs_depth:
-            observed[keep] = observed_distance(depth, centre_img[keep], K)
-            keep &= np.isfinite(observed)
-        if variant.translation == "depth":
-            norm = observed
-        else:
-            norm = scale + observed if variant.scale_anchor == "depth" else scale
-            keep &= norm > 0.0
-        t = poses[:, :3, 3]
-        t_len = np.linalg.norm(t, axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            poses[:, :3, 3] = np.where(keep[:, None], t * (norm / t_len)[:, None], 0.0)
+        _rescale_translations(poses, keep, variant, scale, depth, centre_img, K)
 
     if not np.any(keep):
         return Candidates.empty()
@@ -230,3 +200,73 @@ def decode(
         reprojection_errors=errors[keep],
         keypoints=kp_img[keep],
     )
+
+
+def _check_inputs(K: np.ndarray, M: np.ndarray, depth: np.ndarray | None, variant: Variant
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``K`` as a float 3×3 array, the output → image affine M⁻¹, and ``depth`` as an array (when ``variant``
+    needs it); ``ValueError`` names a malformed one."""
+    K = np.asarray(K, dtype=float)
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+        raise ValueError(f"K must be a finite 3×3 matrix, got shape {K.shape}")
+    M_inv = invert_affine(M)
+    if variant.needs_depth:
+        if depth is None:
+            raise ValueError(f"variant {variant.name} needs the depth image")
+        depth = np.asarray(depth)
+        if depth.ndim != 2 or depth.size == 0 or not np.issubdtype(depth.dtype, np.floating):
+            raise ValueError(f"depth must be a non-empty (H, W) float image in metres, got {depth.shape} {depth.dtype}")
+    return K, M_inv, depth
+
+
+def _read_peaks(m: dict[str, np.ndarray], flat: np.ndarray, variant: Variant
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """At the peaks ``flat`` (indices into the (C, Ho, Wo) heatmap): the orientation bin c of each, its four
+    keypoints (N, 4, 2) and centre (N, 2) in output pixels (the peak's cell (x, y) plus the predicted offsets),
+    its width (m, clipped at 0) and, for a scale variant, its predicted distance (m; else None)."""
+    _, ho, wo = m["hm"].shape
+    c, rest = np.divmod(flat, ho * wo)
+    y, x = np.divmod(rest, wo)
+    cell = np.stack([x, y], axis=1).astype(float)
+    offsets = m["kpts"][8 * c[:, None] + np.arange(8), y[:, None], x[:, None]].astype(float)
+    kp_out = cell[:, None, :] + offsets.reshape(-1, 4, 2)
+    centre_out = cell + m["reg"][:, y, x].T.astype(float)
+    widths = np.maximum(m["width"][c, y, x].astype(float), 0.0)
+    scale = m["scale"][c, y, x].astype(float) if variant.translation == "scale" else None
+    return c, kp_out, centre_out, widths, scale
+
+
+def _solve_poses(kp_img: np.ndarray, K: np.ndarray, keep: np.ndarray, timing: dict[str, float] | None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Box poses T_cam_box (N, 4, 4; identity where not solved) and reprojection errors (N; NaN where not
+    solved) of the keypoints ``kp_img`` (image pixels) that ``keep`` holds, by IPPE PnP; clears ``keep``
+    (in place) where PnP fails and puts its seconds in ``timing["pnp"]`` when given."""
+    poses = np.repeat(np.eye(4)[None], len(kp_img), axis=0)
+    errors = np.full(len(kp_img), np.nan)
+    t0 = time.perf_counter()
+    poses[keep], errors[keep], solved = solve_box_pnp_batch(kp_img[keep], K)
+    if timing is not None:
+        timing["pnp"] = time.perf_counter() - t0
+    keep[keep] = solved
+    return poses, errors
+
+
+def _rescale_translations(poses: np.ndarray, keep: np.ndarray, variant: Variant, scale: np.ndarray | None,
+                          depth: np.ndarray | None, centre_img: np.ndarray, K: np.ndarray) -> None:
+    """In place: each kept pose's translation t scaled to the distance |t'| = d of ``variant`` (t' = t · d / |t|,
+    0 where not kept): the observed distance of the centre pixel in ``depth`` (``depth`` variants), the
+    predicted ``scale``, or scale + observed (a depth-anchored scale); ``keep`` cleared where that distance is
+    not finite or not positive."""
+    observed = np.full(len(keep), np.nan)
+    if variant.needs_depth:
+        observed[keep] = observed_distance(depth, centre_img[keep], K)
+        keep &= np.isfinite(observed)
+    if variant.translation == "depth":
+        norm = observed
+    else:
+        norm = scale + observed if variant.scale_anchor == "depth" else scale
+        keep &= norm > 0.0
+    t = poses[:, :3, 3]
+    t_len = np.linalg.norm(t, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        poses[:, :3, 3] = np.where(keep[:, None], t * (norm / t_len)[:, None], 0.0)

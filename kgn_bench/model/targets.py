@@ -164,12 +164,7 @@ def assign_grasps(
     ``poses_cam`` (N, 4, 4) ``T_cam_grasp``, ``widths`` (N,) m, ``K`` 3×3 intrinsics of the image, ``M`` 2×3
     image → output affine, ``out_shape`` (Ho, Wo), ``assignment`` one of ``ASSIGNMENTS``.
     """
-    if assignment not in ASSIGNMENTS:
-        raise ValueError(f"unknown assignment {assignment!r} (known: {', '.join(ASSIGNMENTS)})")
-    poses_cam = np.asarray(poses_cam, dtype=float)
-    widths = np.asarray(widths, dtype=float)
-    K = np.asarray(K, dtype=float)
-    M = np.asarray(M, dtype=float)
+    poses_cam, widths, K, M = _check_grasp_inputs(poses_cam, widths, K, M, assignment)
     ho, wo = _check_out_shape(out_shape)
     n = poses_cam.shape[0] if poses_cam.ndim == 3 else -1
     if poses_cam.shape != (n, 4, 4) or widths.shape != (n,):
@@ -182,36 +177,12 @@ def assign_grasps(
 
     scales = np.linalg.norm(poses_cam[:, :3, 3], axis=1)
     sides = variant.box_sides(scales)
-    positive = sides > 0.0  # a scale-normalised box of a grasp at the camera centre has no size
-    kp_img, ct_img = project_keypoints(poses_cam[positive], K, sides[positive])
-    kp = np.full((n, 4, 2), np.nan)
-    ct = np.full((n, 2), np.nan)
-    kp[positive] = apply_affine(M, kp_img)
-    ct[positive] = apply_affine(M, ct_img)
-
+    kp, ct = _output_keypoints(poses_cam, K, M, sides)
     flipped = kp[:, 0, 0] > kp[:, 1, 0]
     kp = np.where(flipped[:, None, None], kp[:, _SWAP], kp)
     poses = np.where(flipped[:, None, None], poses_cam @ FLIP_X180, poses_cam)
-
-    pts = np.concatenate([kp, ct[:, None]], axis=1)
-    inside = np.all((pts[..., 0] >= 0.0) & (pts[..., 0] < wo) & (pts[..., 1] >= 0.0) & (pts[..., 1] < ho), axis=1)
-    # NaN (behind the camera) compares False, so those grasps are dropped here too.
-    cells = np.zeros((n, 2), dtype=np.int64)
-    cells[inside] = np.floor(ct[inside]).astype(np.int64)
-    # The bin is computed from the keypoints as the decoder will see them (cell + float32 offset), so an
-    # angle on a bin boundary cannot land in different bins on the two sides of the round trip.
-    kp_q = cells[:, None, :] + (kp - cells[:, None, :]).astype(np.float32).astype(float)
-    bins = np.zeros(n, dtype=np.int64)
-    bins[inside] = orientation_bins(kp_q[inside, 0], kp_q[inside, 1])
-
-    candidates = np.flatnonzero(inside)
-    if assignment == "frontal" and len(candidates):
-        t = poses_cam[candidates, :3, 3]
-        alignment = np.einsum("ni,ni->n", poses_cam[candidates, :3, 0], t) / np.linalg.norm(t, axis=1)
-        candidates = candidates[np.argsort(-alignment, kind="stable")]
-    key = (bins[candidates] * ho + cells[candidates, 1]) * wo + cells[candidates, 0]
-    _, first = np.unique(key, return_index=True)
-    keep = candidates[np.sort(first)][:MAX_GRASPS]
+    inside, cells, bins = _cells_and_bins(kp, ct, ho, wo)
+    keep = _one_per_cell(np.flatnonzero(inside), poses_cam, bins, cells, ho, wo, assignment)
     return AssignedGrasps(
         indices=keep.astype(np.int64),
         poses=poses[keep],
@@ -224,6 +195,61 @@ def assign_grasps(
         scales=scales[keep],
         sides=sides[keep],
     )
+
+
+def _check_grasp_inputs(poses_cam, widths, K, M, assignment: str
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The inputs of ``assign_grasps`` as float arrays; ``ValueError`` for an unknown ``assignment``."""
+    if assignment not in ASSIGNMENTS:
+        raise ValueError(f"unknown assignment {assignment!r} (known: {', '.join(ASSIGNMENTS)})")
+    return (np.asarray(poses_cam, dtype=float), np.asarray(widths, dtype=float), np.asarray(K, dtype=float),
+            np.asarray(M, dtype=float))
+
+
+def _output_keypoints(poses_cam: np.ndarray, K: np.ndarray, M: np.ndarray, sides: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The four keypoints (N, 4, 2) and the centre (N, 2) of each grasp's box of side ``sides`` in output
+    pixels: projected by ``K`` into the image (``project_keypoints``), then mapped by the affine ``M``; NaN
+    where the side is not positive (a scale-normalised box of a grasp at the camera centre has no size)."""
+    n = len(poses_cam)
+    positive = sides > 0.0
+    kp_img, ct_img = project_keypoints(poses_cam[positive], K, sides[positive])
+    kp = np.full((n, 4, 2), np.nan)
+    ct = np.full((n, 2), np.nan)
+    kp[positive] = apply_affine(M, kp_img)
+    ct[positive] = apply_affine(M, ct_img)
+    return kp, ct
+
+
+def _cells_and_bins(kp: np.ndarray, ct: np.ndarray, ho: int, wo: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which grasps have their keypoints ``kp`` and centre ``ct`` (output pixels) all inside the (``ho``,
+    ``wo``) output (NaN, behind the camera, compares False: dropped too), their centre cells (x, y) = ⌊ct⌋
+    and orientation bins (0 where outside)."""
+    n = len(kp)
+    pts = np.concatenate([kp, ct[:, None]], axis=1)
+    inside = np.all((pts[..., 0] >= 0.0) & (pts[..., 0] < wo) & (pts[..., 1] >= 0.0) & (pts[..., 1] < ho), axis=1)
+    cells = np.zeros((n, 2), dtype=np.int64)
+    cells[inside] = np.floor(ct[inside]).astype(np.int64)
+    # The bin is computed from the keypoints as the decoder will see them (cell + float32 offset), so an
+    # angle on a bin boundary cannot land in different bins on the two sides of the round trip.
+    kp_q = cells[:, None, :] + (kp - cells[:, None, :]).astype(np.float32).astype(float)
+    bins = np.zeros(n, dtype=np.int64)
+    bins[inside] = orientation_bins(kp_q[inside, 0], kp_q[inside, 1])
+    return inside, cells, bins
+
+
+def _one_per_cell(candidates: np.ndarray, poses_cam: np.ndarray, bins: np.ndarray, cells: np.ndarray, ho: int,
+                  wo: int, assignment: str) -> np.ndarray:
+    """The indices kept of the ``candidates``: the first in each (bin, cell) target, in the order of the
+    labels ("first") or most frontal first ("frontal": the approach axis x against the camera ray to the
+    grasp, x · t / |t|, highest first), at most ``MAX_GRASPS``, in the order of their first appearance."""
+    if assignment == "frontal" and len(candidates):
+        t = poses_cam[candidates, :3, 3]
+        alignment = np.einsum("ni,ni->n", poses_cam[candidates, :3, 0], t) / np.linalg.norm(t, axis=1)
+        candidates = candidates[np.argsort(-alignment, kind="stable")]
+    key = (bins[candidates] * ho + cells[candidates, 1]) * wo + cells[candidates, 0]
+    _, first = np.unique(key, return_index=True)
+    return candidates[np.sort(first)][:MAX_GRASPS]
 
 
 def render_heatmap(cells: np.ndarray, bins: np.ndarray, out_shape: tuple[int, int]) -> np.ndarray:

@@ -34,6 +34,8 @@ from typing import Literal
 
 import numpy as np
 
+from kgn_bench.errors import InputError
+
 __all__ = ["BOX_SIDE", "VARIANTS", "Variant", "get_variant"]
 
 BOX_SIDE = 0.1
@@ -109,4 +111,4 @@ def get_variant(name: str) -> Variant:
     try:
         return VARIANTS[name]
     except KeyError:
-        raise ValueError(f"unknown variant {name!r} (known: {', '.join(VARIANTS)})") from None
+        raise InputError(f"unknown variant {name!r} (known: {', '.join(VARIANTS)})") from None

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgn_bench.errors import InputError
 from kgn_bench.geometry import make_pose
 from kgn_bench.grasp import grasp_rotation_error
 from kgn_bench.objects.importer import ImportConfig, import_mesh
@@ -165,7 +166,7 @@ def check_labeller(shapes: list[str] | None = None, seed: int = 0, verify: int =
     names = list(PRIMITIVES) if shapes is None else shapes
     for k, name in enumerate(names):
         if name not in PRIMITIVES:
-            raise ValueError(f"unknown primitive {name!r}; known: {', '.join(PRIMITIVES)}")
+            raise InputError(f"unknown primitive {name!r}; known: {', '.join(PRIMITIVES)}")
         shape = PRIMITIVES[name].sample(np.random.default_rng([seed, k]))
         family = shape.grasps(CHECK_DENSITY)
         held = verify_grasps(shape, family.poses, family.widths)

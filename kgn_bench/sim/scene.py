@@ -107,9 +107,24 @@ def build_mjcf(objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE) -
 
     The camera's intrinsics are set in pixels; MuJoCo's principal point is measured from the image
     centre in continuous (corner-origin) pixel coordinates, so ``principalpixel = (W/2 − cx − ½,
-    H/2 − cy − ½)`` puts OpenCV's ``(cx, cy)`` where K says (tested by projection).
+    H/2 − cy − ½)`` puts OpenCV's ``(cx, cy)`` where K says (tested by projection). Elements are added
+    in this order (the MJCF text depends on it): options and visual settings, light, table, camera, the
+    objects in list order, the proxy.
     """
     root = mjcf.RootElement(model="kgn_scene")
+    _set_options(root, objects, intrinsics)
+    world = root.worldbody
+    _add_room(world, intrinsics)
+    for i, obj in enumerate(objects):
+        _add_object(world, i, obj, root.asset)
+    proxy = world.add("body", name="proxy", mocap=True, pos=_PROXY_PARK)
+    proxy.add("geom", name="proxy", type="box", size=(0.05, 0.01, 0.05), contype=2, conaffinity=0,
+              group=GROUP_PROXY, rgba=(1, 0, 0, 0.3))
+    return root
+
+
+def _set_options(root: mjcf.RootElement, objects: list[SceneObject], intrinsics: Intrinsics) -> None:
+    """The compiler, physics options, arena size (``arena_megabytes``), offscreen buffer and visual settings."""
     root.compiler.angle = "radian"
     root.option.timestep = TIMESTEP
     root.option.integrator = "implicitfast"
@@ -130,7 +145,10 @@ def build_mjcf(objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE) -
     root.visual.headlight.diffuse = (0.55, 0.55, 0.55)
     root.visual.headlight.specular = (0.1, 0.1, 0.1)
 
-    world = root.worldbody
+
+def _add_room(world, intrinsics: Intrinsics) -> None:
+    """The light, the table (its top is the world plane z = 0) and the fixed camera (posed later by
+    ``Scene.set_camera_pose``; intrinsics in pixels, see ``build_mjcf``)."""
     world.add("light", name="top", pos=(0.0, 0.0, 2.0), dir=(0.0, 0.0, -1.0), directional=True,
               diffuse=(0.35, 0.35, 0.35), specular=(0.05, 0.05, 0.05), castshadow=False)
     world.add(
@@ -145,26 +163,26 @@ def build_mjcf(objects: list[SceneObject], intrinsics: Intrinsics = REALSENSE) -
         principalpixel=(w / 2.0 - intrinsics.cx - 0.5, h / 2.0 - intrinsics.cy - 0.5),
         sensorsize=(w * 1e-5, h * 1e-5), resolution=(w, h),
     )
-    for i, obj in enumerate(objects):
-        shape = obj.shape
-        pieces = shape.collision_geoms()
-        density = shape.mass() / sum(p.volume() for p in pieces)
-        rgba = (*obj.color, 1.0)
-        body = world.add("body", name=f"object_{i}", pos=obj.pose[:3, 3], quat=quat_wxyz_from_matrix(obj.pose[:3, :3]))
-        body.add("freejoint", name=f"object_{i}")
-        visuals = shape.visual_geoms()
-        shared = visuals is not None and visuals == pieces
-        for k, piece in enumerate(pieces):
-            _add_geom(body, piece, f"object_{i}_col{k}", visual=shared, collision=True, density=density,
-                      rgba=rgba, assets=root.asset)
-        if not shared:
-            for k, vis in enumerate(visuals):
-                _add_geom(body, vis, f"object_{i}_vis{k}", visual=True, collision=False, density=0.0,
-                          rgba=rgba, assets=root.asset)
-    proxy = world.add("body", name="proxy", mocap=True, pos=_PROXY_PARK)
-    proxy.add("geom", name="proxy", type="box", size=(0.05, 0.01, 0.05), contype=2, conaffinity=0,
-              group=GROUP_PROXY, rgba=(1, 0, 0, 0.3))
-    return root
+
+
+def _add_object(world, i: int, obj: SceneObject, assets) -> None:
+    """Object ``i``: a free body ``object_i`` at its world pose, its collision pieces (a density that gives the
+    shape's mass) and, where they differ, its visual geoms (massless)."""
+    shape = obj.shape
+    pieces = shape.collision_geoms()
+    density = shape.mass() / sum(p.volume() for p in pieces)
+    rgba = (*obj.color, 1.0)
+    body = world.add("body", name=f"object_{i}", pos=obj.pose[:3, 3], quat=quat_wxyz_from_matrix(obj.pose[:3, :3]))
+    body.add("freejoint", name=f"object_{i}")
+    visuals = shape.visual_geoms()
+    shared = visuals is not None and visuals == pieces
+    for k, piece in enumerate(pieces):
+        _add_geom(body, piece, f"object_{i}_col{k}", visual=shared, collision=True, density=density,
+                  rgba=rgba, assets=assets)
+    if not shared:
+        for k, vis in enumerate(visuals):
+            _add_geom(body, vis, f"object_{i}_vis{k}", visual=True, collision=False, density=0.0,
+                      rgba=rgba, assets=assets)
 
 
 class Scene:

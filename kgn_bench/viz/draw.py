@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from kgn_bench.data.format import SceneAnnotation, read_view, scene_dir
+from kgn_bench.data.format import DatasetError, SceneAnnotation, read_view, scene_dir
 from kgn_bench.geometry import invert_pose, project
 from kgn_bench.grasp import KEYPOINT_LINKS, keypoints_in_frame
 from kgn_bench.types import Observation
@@ -109,7 +109,7 @@ def show_view(root: Path, scene: int, view: int, box: str = "width") -> np.ndarr
     folder = scene_dir(root, scene)
     ann = SceneAnnotation.load(folder / "scene.json")
     if not 0 <= view < len(ann.camera_poses):
-        raise ValueError(f"scene {scene} has views 0..{len(ann.camera_poses) - 1}, not {view}")
+        raise DatasetError(f"scene {scene} has views 0..{len(ann.camera_poses) - 1}, not {view}")
     rgbd = read_view(folder, view)
     K = ann.intrinsics.K
     T_cam_world = invert_pose(ann.camera_poses[view])

@@ -1,0 +1,99 @@
+"""``kgn-bench data``: generate and draw the Primitive Shape dataset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .common import fail, make_backend, writable, writable_file
+from .options import Parser, cluster_options, int_at_least, parent, quiet_option, workers_option
+
+__all__ = ["add"]
+
+
+def add(sub) -> None:
+    """The ``data`` command group."""
+    data = sub.add_parser("data", help="the Primitive Shape dataset")
+    dsub = data.add_subparsers(dest="data_command", required=True, parser_class=Parser)
+    for add_command in (_add_generate, _add_show):
+        add_command(dsub)
+
+
+def _object_names(items: list[str]) -> list[str]:
+    """Object names from the command line, a packaged set's name (``pybullet_test``) expanded to its objects;
+    the packaged ones the library lacks are imported first."""
+    from kgn_bench.objects.pybullet_set import ensure_objects
+    from kgn_bench.shapes import is_known
+    from kgn_bench.shapes.library import OBJECT_SETS, packaged, set_names
+    from kgn_bench.shapes.mesh_object import ObjectError
+
+    names: list[str] = []
+    for item in items:
+        names += set_names(item) if item in OBJECT_SETS else [item]
+    for n in names:
+        if not (is_known(n) or packaged(n)):
+            raise ObjectError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
+                              "(kgn-bench objects list)")
+    ensure_objects(names)
+    return list(dict.fromkeys(names))
+
+
+def _add_generate(dsub) -> None:
+    """``kgn-bench data generate``: its arguments."""
+    gen = dsub.add_parser("generate", help="generate a PS dataset (resumes an interrupted run)",
+                          parents=[parent(workers_option(1, cluster=True), cluster_options, quiet_option)])
+    gen.add_argument("--mode", choices=("single", "multi"), required=True,
+                     help="single: one random shape per scene; multi: one of each of the six shapes")
+    gen.add_argument("--scenes", type=int_at_least(1), default=1000, help="number of scenes (default 1000)")
+    gen.add_argument("--views", type=int_at_least(1), default=5, help="camera views per scene (default 5)")
+    gen.add_argument("--seed", type=int_at_least(0), default=0, help="dataset seed (default 0)")
+    gen.add_argument("--out", type=Path, required=True, help="output folder")
+    gen.add_argument("--overwrite", action="store_true", help="replace a dataset with other settings in --out")
+    gen.add_argument("--objects", nargs="+", metavar="NAME",
+                     help="object types or a set (pybullet_test) to draw from instead of the six primitives; "
+                          "multi mode puts six of them in each scene")
+    gen.set_defaults(func=_cmd_data_generate)
+
+
+def _cmd_data_generate(args) -> int:
+    from kgn_bench.data.generate import GenerateConfig, generate_dataset
+    from kgn_bench.sim.scene import PhysicsError
+
+    backend = make_backend(args)
+    writable(args.out)
+    objects = _object_names(args.objects or [])
+    config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed,
+                            objects=tuple(objects))
+    try:
+        stats = generate_dataset(config, args.out, workers=args.workers, overwrite=args.overwrite,
+                                 progress=not args.quiet, backend=backend)
+    except PhysicsError as e:
+        return fail(f"{e}; finished scenes are kept, rerun the same command to resume")
+    done = config.scenes - stats.scenes
+    print(
+        f"{args.out}: {config.scenes} scenes x {config.views} views ({stats.scenes} generated now"
+        + (f", {done} already there" if done else "")
+        + f") in {stats.wall:.1f} s, {stats.views_per_second:.1f} views/s"
+    )
+    return 0
+
+
+def _add_show(dsub) -> None:
+    """``kgn-bench data show``: its arguments."""
+    show = dsub.add_parser("show", help="draw a view's collision-free ground-truth grasps and its depth")
+    show.add_argument("dir", type=Path, help="dataset folder")
+    show.add_argument("--scene", type=int_at_least(0), required=True)
+    show.add_argument("--view", type=int_at_least(0), default=0)
+    show.add_argument("--box", choices=("width", "fixed"), default="width",
+                      help="keypoint box side: the grasp width (default) or the fixed 0.1 m training box")
+    show.add_argument("--out", type=Path, required=True, help="PNG to write")
+    show.set_defaults(func=_cmd_data_show)
+
+
+def _cmd_data_show(args) -> int:
+    from kgn_bench.viz.draw import show_view
+    from kgn_bench.viz.images import save_png
+
+    writable_file(args.out, "image")
+    save_png(args.out, show_view(args.dir, args.scene, args.view, box=args.box))
+    print(f"wrote {args.out}")
+    return 0

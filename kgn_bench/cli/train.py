@@ -1,0 +1,58 @@
+"""``kgn-bench train`` and ``kgn-bench ship``: train a model, ship its checkpoint as weights."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .common import writable
+from .options import int_at_least, parent, quiet_option
+
+__all__ = ["add"]
+
+
+def add(sub) -> None:
+    """The ``train`` and ``ship`` commands."""
+    for add_command in (_add_train, _add_ship):
+        add_command(sub)
+
+
+def _add_train(sub) -> None:
+    """``kgn-bench train``: its arguments."""
+    tr = sub.add_parser("train", help="train a KGN / KGNv2 model from a config (resumes an interrupted run)",
+                        parents=[parent(quiet_option)])
+    tr.add_argument("config", type=Path, help="training config (tasks/train_*.toml, or its bundled name)")
+    tr.add_argument("--device", help="torch device (default: cuda when present, else cpu)")
+    tr.add_argument("--threads", type=int_at_least(1), help="CPU threads for torch (default: all cores)")
+    tr.set_defaults(func=_cmd_train)
+
+
+def _cmd_train(args) -> int:
+    from kgn_bench.eval.vision import held_out_evaluator
+    from kgn_bench.training.train import load_train_config, train
+
+    cfg = load_train_config(args.config)
+    writable(Path(cfg.train.out), "training run folder")
+    final = train(cfg, progress=not args.quiet, device=args.device, threads=args.threads, evaluate=held_out_evaluator)
+    print(f"wrote {final}")
+    return 0
+
+
+def _add_ship(sub) -> None:
+    """``kgn-bench ship``: its arguments."""
+    ex = sub.add_parser("ship", help="ship a trained checkpoint as weights with a model card")
+    ex.add_argument("checkpoint", type=Path, help="a training run's final.pt (or last.pt)")
+    ex.add_argument("--name", required=True, help="weights name (kgnv2, kgn, ...)")
+    ex.add_argument("--out", type=Path, default=Path("assets/weights"),
+                    help="folder (default assets/weights: the shipped weights, run from the repository)")
+    ex.set_defaults(func=_cmd_ship)
+
+
+def _cmd_ship(args) -> int:
+    from kgn_bench.model.checkpoint import export_weights
+    from kgn_bench.viz.figures import save_training_curves
+
+    writable(args.out, "weights folder")
+    weights, card = export_weights(args.checkpoint, args.name, args.out)
+    save_training_curves(weights)
+    print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
+    return 0
