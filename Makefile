@@ -28,7 +28,7 @@ demo: setup
 	$(BIN)/kgn-bench data show runs/ps_multi_demo --scene 0 --view 0 --out runs/ps_multi_demo/preview.png
 
 test: setup
-	$(BIN)/ruff check kgn_bench tests docs/hooks
+	$(BIN)/ruff check kgn_bench tests docs/hooks results/architecture
 	$(BIN)/pytest -q
 
 # The regression checks that the test suite runs (tests/test_ci_regression.py), with their tables printed: the

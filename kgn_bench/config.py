@@ -88,15 +88,15 @@ CAMERA_SPANS = ("distance", "elevation_deg", "azimuth_deg")
 class SelectorConfig:
     """Grasp selection (``bench.selector``): rank by score, keep the first candidate that passes the gripper
     checks. ``score``: ``confidence_minus_error`` = c − λ·RE (the default; λ = ``reprojection_weight``,
-    default 0: larger λ made no measurable difference; README "Selector study") or ``paper_literal``
+    default 0: larger λ made no measurable difference; docs/studies/selector.md) or ``paper_literal``
     = c + RE (the paper's printed formula, kept as an ablation). A candidate closer than
     ``retry_distance`` (m) and ``retry_angle_deg`` (up to the 180° symmetry) to a grasp that already failed
     in the same trial is not tried again. ``shadow_margin`` (m): how far behind the observed surface a palm
     or wrist point must lie to count as hidden (the selector's occlusion check). ``centre_range`` (m, 0 = off):
     how far the chosen grasp may move along its closing axis to centre the observed points between the jaws
-    (default 0.02; README "Selector study").
+    (default 0.02; the selector study).
     ``level_deg`` (degrees, 0 = off): grasps approaching within this angle of straight down get a horizontal
-    closing axis (``bench.selector.level_poses``; default 30; README "Selector study").
+    closing axis (``bench.selector.level_poses``; default 30; the selector study).
     ``palm_margin`` (m): how much the palm and wrist boxes grow in the collision check (default 0.01: the
     observed cloud is sparse and one-sided, so the bare palm grazed rims and neighbours it did not see;
     ``results/sweeps/palm_margin.md``).

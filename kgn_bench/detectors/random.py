@@ -9,8 +9,8 @@ uniform in ``width_range``. Confidences are uniform in [0, 1]; no reprojection e
 vets it (a guess that would collide or enclose nothing is not executed: the attempt fails as
 ``no_candidate``), but it has nothing to choose from. With many guesses the selector's checks pick the
 feasible ones and its levelling and centring fix them up: that measures the selector as a sample-and-filter
-planner, not the floor: ``--detector kgn_bench.detectors.random:sample_and_filter`` runs it (README
-"Results").
+planner, not the floor: ``--detector kgn_bench.detectors.random:sample_and_filter`` runs it (the results,
+docs/results.md).
 """
 
 from __future__ import annotations

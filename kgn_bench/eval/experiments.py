@@ -358,7 +358,7 @@ def recipe_of(model: ModelSpec) -> str:
 
 
 def _recipe_lines(rows: tuple[str, ...]) -> list[str]:
-    return ["", "Training recipe of each row's shipped weights (README \"Where the 1 cm misses come from\"):", "",
+    return ["", "Training recipe of each row's shipped weights (docs/studies/error-decomposition.md):", "",
             *[f"- {MODELS[name].label}: {recipe_of(MODELS[name])}" for name in rows]]
 
 
