@@ -19,8 +19,8 @@ from typing import Any
 
 from kgn_bench import kernels
 
-__all__ = ["OUTCOME_PACKAGES", "cpu_model", "environment", "environment_differences", "kernel_set", "portable",
-           "renderer"]
+__all__ = ["OUTCOME_PACKAGES", "computed_with", "cpu_model", "environment", "environment_differences", "kernel_set",
+           "portable", "renderer"]
 
 OUTCOME_PACKAGES = ("mujoco", "dm-control", "mink", "qpsolvers", "daqp", "torch", "opencv-python-headless",
                     "numpy", "scipy", "trimesh")
@@ -96,6 +96,13 @@ def kernel_set(record: dict[str, Any]) -> str:
     """The kernel set of an ``environment()`` record: ``kernels.PORTABLE`` or ``native`` (records made before
     the kernels were recorded computed with native kernels)."""
     return (record.get("kernels") or {}).get("set", "native")
+
+
+def computed_with() -> str:
+    """What this process's numbers are reproducible across, in one string for a manifest: the portable kernel
+    set's name (any x86-64 CPU with AVX2 gives the same results), or ``native (<CPU>)`` (only this CPU does)."""
+    described = kernels.describe()
+    return described["set"] if described["set"] == kernels.PORTABLE else f"native ({cpu_model()})"
 
 
 def portable(record: dict[str, Any]) -> bool:

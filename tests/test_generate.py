@@ -10,6 +10,7 @@ import pytest
 from kgn_bench.data.format import DatasetError, SceneAnnotation, read_split, read_view, scene_dir
 from kgn_bench.data.generate import GenerateConfig, generate_dataset, relabel_grasps
 from kgn_bench.geometry import invert_pose, project, transform_points
+from kgn_bench.kernels import PORTABLE
 from kgn_bench.shapes import EVAL_DENSITY, TRAIN_DENSITY
 
 
@@ -69,6 +70,17 @@ def test_refuses_foreign_or_different_folders(tiny_dataset, tmp_path):
     generate_dataset(small, foreign, overwrite=True, progress=False)
     assert (foreign / "notes.txt").read_text() == "keep me"
     assert len(SceneAnnotation.load(scene_dir(foreign, 0) / "scene.json").objects) == 1
+
+
+def test_the_manifest_names_the_kernel_set_and_a_resume_under_another_is_refused(tiny_dataset, monkeypatch):
+    """Scenes settle differently in their last bits under native kernels, so a dataset begun under the
+    portable set is not finished under another one."""
+    root, config = tiny_dataset
+    assert config.manifest()["kernels"] == PORTABLE  # the test session runs under the portable set
+    monkeypatch.setenv("KGN_BENCH_KERNELS", "native")
+    assert config.manifest()["kernels"].startswith("native (")
+    with pytest.raises(DatasetError, match="other settings \\(kernels\\)"):
+        generate_dataset(config, root, progress=False)
 
 
 def test_relabelling_reproduces_stored_labels_and_densifies(tiny_dataset):

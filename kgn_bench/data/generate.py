@@ -29,6 +29,7 @@ from kgn_bench.data.format import (
     scene_dir,
     write_view,
 )
+from kgn_bench.environment import computed_with
 from kgn_bench.grasp import GraspSet
 from kgn_bench.io import atomic_write_text
 from kgn_bench.pool import LOCAL, Backend, run_jobs
@@ -90,6 +91,10 @@ class GenerateConfig:
             raise ValueError("scenes and views must be ≥ 1 and seed ≥ 0")
 
     def manifest(self) -> dict:
+        """The settings that decide the dataset's bytes, written to ``dataset.json``: a folder is resumed only
+        by the same manifest. ``kernels`` (``environment.computed_with``) is among them because the settled
+        scenes and the renders differ in their last bits between kernel sets (OpenBLAS's), so a resume under
+        another set would mix two datasets."""
         return {
             "format_version": FORMAT_VERSION,
             "generator": "kgn_bench.data.generate",
@@ -102,6 +107,7 @@ class GenerateConfig:
             "camera_elevation_deg": [float(np.rad2deg(a)) for a in self.cameras.elevation_range],
             "grasp_density": {"translations": self.density.translations, "angles": self.density.angles},
             "label_version": LABEL_VERSION,
+            "kernels": computed_with(),
             "object_types": self.object_types,
             "test_fraction": TEST_FRACTION,
         }
