@@ -15,6 +15,7 @@ from kgn_bench.bench.stats import summarise, summary_markdown
 from kgn_bench.bench.trial import TIMING_KEYS
 from kgn_bench.cli import main
 from kgn_bench.config import load_task
+from kgn_bench.errors import InputError
 
 TASKS = Path(__file__).resolve().parents[1] / "tasks"
 
@@ -163,7 +164,7 @@ def test_a_folder_holding_another_run_is_refused(first_run, task, tmp_path):
 
 
 def test_bad_arguments(task, tmp_path):
-    with pytest.raises(RunError, match="unknown detector 'nope'"):
+    with pytest.raises(InputError, match="unknown detector 'nope'"):
         run_benchmark(task, "nope", tmp_path / "a", progress=False)
     with pytest.raises(ValueError, match="workers"):
         run_benchmark(task, "oracle", tmp_path / "b", workers=0, progress=False)

@@ -10,6 +10,8 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 
+from kgn_bench.errors import InputError
+
 from .antipodal import AntipodalDetector
 from .base import Candidates, Detector, DetectorError, Observation
 from .oracle import OracleDetector
@@ -50,16 +52,16 @@ def detector_factory(name: str) -> Callable[..., Detector]:
         return DETECTORS[name]
     module, sep, attribute = name.partition(":")
     if not sep:
-        raise ValueError(f"unknown detector {name!r}; known: {', '.join(sorted(DETECTORS))} "
+        raise InputError(f"unknown detector {name!r}; known: {', '.join(sorted(DETECTORS))} "
                          "(or module:attribute for your own)")
     try:
         factory = getattr(importlib.import_module(module), attribute)
     except ImportError as e:
-        raise ValueError(f"detector {name!r}: cannot import {module!r} ({e})") from None
+        raise InputError(f"detector {name!r}: cannot import {module!r} ({e})") from None
     except AttributeError:
-        raise ValueError(f"detector {name!r}: module {module!r} has no {attribute!r}") from None
+        raise InputError(f"detector {name!r}: module {module!r} has no {attribute!r}") from None
     if not callable(factory):
-        raise ValueError(f"detector {name!r}: {attribute!r} is not a class or function")
+        raise InputError(f"detector {name!r}: {attribute!r} is not a class or function")
     return factory
 
 
@@ -70,9 +72,9 @@ def make_detector(name: str, weights=None) -> Detector:
     if name in LEARNED:
         return factory(weights)
     if weights is not None:
-        raise ValueError(f"detector {name!r} takes no weights")
+        raise InputError(f"detector {name!r} takes no weights")
     detector = factory()
     missing = [a for a in ("name", "privileged", "reset", "detect") if not hasattr(detector, a)]
     if missing:
-        raise ValueError(f"detector {name!r} lacks {', '.join(missing)} (see kgn_bench.detectors.base.Detector)")
+        raise InputError(f"detector {name!r} lacks {', '.join(missing)} (see kgn_bench.detectors.base.Detector)")
     return detector
