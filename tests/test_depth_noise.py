@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from kgn_bench.camera import REALSENSE
-from kgn_bench.sim.depth_noise import DepthNoise, occlusion_shadow
+from kgn_bench.sim.depth_noise import DepthNoise, DexNoise, occlusion_shadow, upsample_bilinear
 
 FX = REALSENSE.fx
 H, W = 120, 640
@@ -73,3 +73,51 @@ def test_bad_input_is_refused():
         DepthNoise(-1.0)
     with pytest.raises(ValueError, match="2-D float"):
         DepthNoise(1.0).apply(np.zeros((4, 4, 1), np.float32), FX, np.random.default_rng(0))
+
+
+# -- GIGA's "dex" model -----------------------------------------------------------------------------------------
+
+
+def test_dex_scale_factor_has_the_gamma_moments():
+    """α ~ Gamma(1000, 0.001): mean 1, standard deviation √1000 · 0.001 = 3.16 %."""
+    noise = DexNoise(gp_probability=0.0)
+    flat = np.full((4, 4), 0.5)
+    rng = np.random.default_rng(0)
+    alphas = np.array([noise.apply(flat, 540.0, rng)[0, 0] / 0.5 for _ in range(4000)])
+    assert abs(alphas.mean() - 1.0) < 0.002
+    assert abs(alphas.std() - 0.0316) < 0.002
+    once = noise.apply(flat, 540.0, rng)
+    assert np.all(once == once[0, 0])  # one α for the whole image
+
+
+def test_dex_field_is_smooth_and_present_in_about_half_the_images():
+    noise = DexNoise(gamma_shape=1e12, gamma_scale=1e-12)  # α = 1: only the additive field is left
+    depth = np.full((480, 640), 0.6)
+    rng = np.random.default_rng(1)
+    fields = [noise.apply(depth, 540.0, rng) - depth for _ in range(200)]
+    with_field = [f for f in fields if f.std() > 1e-5]  # without the field, f = (α − 1)·z is constant
+    assert 80 <= len(with_field) <= 120  # Binomial(200, 0.5): ±2.8 σ
+    f = with_field[0]
+    inner = f[8:-8, 8:-8]
+    assert 0.002 < inner.std() < 0.005  # N(0, 5 mm) at the grid points, smoothed between them
+    steps = np.diff(inner, axis=1)
+    assert steps.std() < 0.4 * inner.std()  # neighbours are correlated: a field, not per-pixel noise
+
+
+def test_dex_keeps_holes_and_repeats_with_the_seed():
+    depth = np.full((48, 64), 0.7, dtype=np.float32)
+    depth[10:20, 10:20] = 0.0
+    a = DexNoise().apply(depth, 540.0, np.random.default_rng(5))
+    b = DexNoise().apply(depth, 540.0, np.random.default_rng(5))
+    assert a.dtype == np.float32 and np.array_equal(a, b)
+    assert np.all(a[10:20, 10:20] == 0) and np.all(a[depth > 0] > 0)
+
+
+def test_bilinear_upsampling_interpolates_between_grid_points():
+    grid = np.array([[0.0, 1.0], [2.0, 3.0]])
+    up = upsample_bilinear(grid, (4, 4))
+    # Output pixel i samples the input at (i + 1/2)/2 - 1/2: 1 -> 0.25, 2 -> 0.75, 3 -> 1.25 (beyond the border,
+    # where the grid is extended with zeros).
+    assert up[1, 1] == pytest.approx(0.75 * 0.25 * 1.0 + 0.25 * 0.75 * 2.0 + 0.25 * 0.25 * 3.0)
+    assert up[1, 2] == pytest.approx(0.75 * 0.75 * 1.0 + 0.25 * 0.25 * 2.0 + 0.25 * 0.75 * 3.0)
+    assert up[0, 3] == pytest.approx(0.75 * 0.75 * 1.0)

@@ -1,4 +1,5 @@
-"""A RealSense-D435-like degradation of rendered planar depth (after Intel's D400 stereo depth and noise model).
+"""Degradations of rendered planar depth: a RealSense-D435-like stereo model (``DepthNoise``, after Intel's D400
+stereo depth and noise model) and GIGA's "dex" model (``DexNoise``, below).
 
 The D435 measures depth by stereo matching between a left (reference) and a right infrared imager a baseline
 ``B`` = 50 mm apart. In the reference image a point at planar depth z has disparity d = f·B / z pixels and
@@ -27,8 +28,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
-__all__ = ["DepthNoise", "occlusion_shadow"]
+__all__ = ["DepthNoise", "DexNoise", "occlusion_shadow", "upsample_bilinear"]
 
 
 def occlusion_shadow(depth: np.ndarray, fx: float, baseline: float) -> np.ndarray:
@@ -103,3 +105,51 @@ class DepthNoise:
         noisy = disparity + self.strength * self.subpixel * rng.standard_normal(depth.shape)
         out = np.where(valid & ~invalid & (noisy > 0), fb / np.maximum(noisy, 1e-9), 0.0)
         return out.astype(depth.dtype)
+
+
+def upsample_bilinear(grid: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``grid`` (h, w) resampled to ``shape`` (H, W) by bilinear interpolation with pixel-centre alignment: output
+    pixel ``i`` samples the input at ``(i + ½)·h/H − ½``, and samples beyond the border blend towards 0 (the
+    grid is extended with zeros), as an image resize of order 1 with a constant border does."""
+    h, w = grid.shape
+    rows = (np.arange(shape[0]) + 0.5) * (h / shape[0]) - 0.5
+    cols = (np.arange(shape[1]) + 0.5) * (w / shape[1]) - 0.5
+    rr, cc = np.meshgrid(rows, cols, indexing="ij")
+    return ndimage.map_coordinates(grid, [rr, cc], order=1, mode="grid-constant", cval=0.0)
+
+
+@dataclass(frozen=True)
+class DexNoise:
+    """GIGA's "dex" depth noise (after Dex-Net 2.0), which their simulated benchmark applies to each view.
+
+    One multiplicative factor per image, ``α ~ Gamma(k = gamma_shape, θ = gamma_scale)`` (mean k·θ = 1, standard
+    deviation √k·θ ≈ 3.2 %), scales the whole depth image; then, with probability ``gp_probability``, a smooth
+    additive field is added: i.i.d. ``N(0, gp_sigma²)`` metres on a grid ``gp_downsample`` times coarser than the
+    image (120 × 160 at 640 × 480), resampled bilinearly to the image (``upsample_bilinear``), a cheap stand-in
+    for a Gaussian process. ``z' = α·z + ε(u, v)`` on pixels with a return; pixels without one (0) stay 0.
+    """
+
+    gamma_shape: float = 1000.0
+    gamma_scale: float = 0.001
+    gp_probability: float = 0.5
+    gp_sigma: float = 0.005
+    gp_downsample: int = 4
+
+    def __post_init__(self) -> None:
+        if not (self.gamma_shape > 0 and self.gamma_scale > 0 and self.gp_sigma >= 0 and self.gp_downsample >= 1):
+            raise ValueError(f"invalid dex noise parameters {self}")
+        if not 0.0 <= self.gp_probability <= 1.0:
+            raise ValueError(f"gp_probability must be in [0, 1], got {self.gp_probability}")
+
+    def apply(self, depth: np.ndarray, fx: float, rng: np.random.Generator) -> np.ndarray:
+        """A degraded copy of ``depth`` (H, W) float planar metres (0 = no return); ``fx`` is not used (the model
+        is in metres, not in disparity), it keeps the signature of ``DepthNoise.apply``."""
+        depth = np.asarray(depth)
+        if depth.ndim != 2 or not np.issubdtype(depth.dtype, np.floating):
+            raise ValueError(f"depth must be a 2-D float image, got {depth.shape} {depth.dtype}")
+        out = depth * rng.gamma(self.gamma_shape, self.gamma_scale)
+        if rng.random() < self.gp_probability:
+            h, w = depth.shape
+            coarse = (max(1, h // self.gp_downsample), max(1, w // self.gp_downsample))
+            out = out + upsample_bilinear(rng.normal(0.0, self.gp_sigma, coarse), (h, w))
+        return np.where(depth > 0, out, 0.0).astype(depth.dtype)
