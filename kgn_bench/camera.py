@@ -14,6 +14,8 @@ import numpy as np
 from kgn_bench.geometry import make_pose
 
 __all__ = [
+    "GIGA",
+    "INTRINSICS",
     "REALSENSE",
     "CameraSampler",
     "Intrinsics",
@@ -74,6 +76,12 @@ REALSENSE = Intrinsics(
     fx=616.36529541, fy=616.20294189, cx=310.25881958, cy=236.59980774, width=640, height=480
 )
 """RealSense colour intrinsics at 640×480 used by the reference implementation's PS dataset."""
+
+GIGA = Intrinsics(fx=540.0, fy=540.0, cx=320.0, cy=240.0, width=640, height=480)
+"""The simulated camera of VGN's and GIGA's benchmark: 640×480, f = 540 px, the principal point at the centre."""
+
+INTRINSICS: dict[str, Intrinsics] = {"realsense": REALSENSE, "giga": GIGA}
+"""The cameras a task file can name (``[camera] intrinsics``)."""
 
 
 _UP = np.array([0.0, 0.0, 1.0])

@@ -17,6 +17,7 @@ from typing import Any
 
 import tomllib
 
+from kgn_bench.camera import INTRINSICS
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.execution import GRASP_DEPTH, PREGRASP_DISTANCE
 from kgn_bench.protocols import CLEARANCE_PROTOCOLS, CLUTTER_PROTOCOLS, Protocol
@@ -24,9 +25,9 @@ from kgn_bench.protocols import PROTOCOLS as PROTOCOL_TABLE
 from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
 from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
-__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "PROTOCOLS", "RAW_SELECTOR", "SELECTOR_MODES",
-           "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig", "SelectorConfig", "TaskConfig",
-           "apply_override", "load_task", "parse_section", "read_toml", "resolve_task", "task_from_dict"]
+__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "NOISE_MODELS", "PROTOCOLS", "RAW_SELECTOR",
+           "SELECTOR_MODES", "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig", "SelectorConfig",
+           "TaskConfig", "apply_override", "load_task", "parse_section", "read_toml", "resolve_task", "task_from_dict"]
 
 PROTOCOLS = tuple(PROTOCOL_TABLE)
 """The protocol names (``kgn_bench.protocols.PROTOCOLS`` describes each)."""
@@ -52,15 +53,20 @@ class CameraConfig:
     plane and ``azimuth_deg`` (``camera.orbit_pose``: 0 = on the +y side, 90 = on the −x side, over the
     robot). Each of the three is one value (a fixed camera, the default) or a range ``[lo, hi]`` from which
     every trial draws its own camera uniformly (``draw``; seeded by the task's seed and the trial index, on a
-    stream of its own so the scene does not change with it). ``depth_noise``: strength of the D435-like depth
-    model (``sim.depth_noise``) applied to every capture; 0 (the default) gives the renderer's exact depth, 1
-    the typical D435."""
+    stream of its own so the scene does not change with it). ``depth_noise``: strength of the depth model
+    ``noise_model`` applied to every capture; 0 (the default) gives the renderer's exact depth. ``noise_model``:
+    ``d435`` (the default: the D435-like stereo model of ``sim.depth_noise``, 1 = the typical D435) or ``dex``
+    (GIGA's model, ``sim.depth_noise.DexNoise``, which has no strength: ``depth_noise`` 1 turns it on).
+    ``intrinsics``: the pinhole camera by name (``camera.INTRINSICS``): ``realsense`` (the default, the PS
+    dataset's) or ``giga`` (VGN's and GIGA's 540 px camera)."""
 
     distance: Span = 0.8
     elevation_deg: Span = 60.0
     azimuth_deg: Span = 90.0
     target: tuple[float, float, float] = (0.0, 0.0, 0.0)
     depth_noise: float = 0.0
+    noise_model: str = "d435"
+    intrinsics: str = "realsense"
 
     def span(self, name: str) -> tuple[float, float]:
         """``(lo, hi)`` of ``distance``, ``elevation_deg`` or ``azimuth_deg`` (lo = hi when fixed)."""
@@ -82,6 +88,9 @@ class CameraConfig:
 
 
 CAMERA_SPANS = ("distance", "elevation_deg", "azimuth_deg")
+
+NOISE_MODELS = ("d435", "dex")
+"""The depth models ``[camera] noise_model`` can name (``sim.depth_noise.noise_model`` builds them)."""
 
 
 @dataclass(frozen=True)
@@ -437,8 +446,7 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         raise ConfigError(f"{where}: selector.mode must be one of {', '.join(SELECTOR_MODES)}, got {sel.mode!r}")
     if cfg.selector.score not in SCORES:
         raise ConfigError(f"{where}: selector.score must be one of {', '.join(SCORES)}, got {cfg.selector.score!r}")
-    if not 0.0 <= cfg.camera.depth_noise <= 10.0:
-        raise ConfigError(f"{where}: camera.depth_noise must be in [0, 10], got {cfg.camera.depth_noise}")
+    _validate_camera(cfg.camera, where)
     for name, (lo_ok, hi_ok, unit) in {"distance": (0.3, 2.0, " m"), "elevation_deg": (10.0, 90.0, ""),
                                         "azimuth_deg": (-360.0, 360.0, "")}.items():
         lo, hi = cfg.camera.span(name)
@@ -447,6 +455,20 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
                               f"[lo, hi] with lo ≤ hi), got {getattr(cfg.camera, name)!r}")
     if cfg.execution.max_consecutive_failures < 1:
         raise ConfigError(f"{where}: execution.max_consecutive_failures must be ≥ 1")
+
+
+def _validate_camera(cam: CameraConfig, where: str) -> None:
+    """The camera's names and ranges (the spans are checked by the caller)."""
+    if cam.noise_model not in NOISE_MODELS:
+        raise ConfigError(f"{where}: camera.noise_model must be one of {', '.join(NOISE_MODELS)}, "
+                          f"got {cam.noise_model!r}")
+    if cam.intrinsics not in INTRINSICS:
+        raise ConfigError(f"{where}: camera.intrinsics must be one of {', '.join(INTRINSICS)}, got {cam.intrinsics!r}")
+    if not 0.0 <= cam.depth_noise <= 10.0:
+        raise ConfigError(f"{where}: camera.depth_noise must be in [0, 10], got {cam.depth_noise}")
+    if cam.noise_model == "dex" and cam.depth_noise not in (0.0, 1.0):
+        raise ConfigError(f"{where}: the dex noise model is on or off: camera.depth_noise must be 0 or 1, "
+                          f"got {cam.depth_noise}")
 
 
 _OVERRIDABLE = {"camera": CameraConfig, "selector": SelectorConfig, "execution": ExecutionConfig}

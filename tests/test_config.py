@@ -207,9 +207,21 @@ def test_apply_override_sets_one_typed_value_and_validates_it():
         ("robot.speed", "1", "section one of camera, selector, execution"),
         ("selector.score", "best", "selector.score must be one of"),
         ("execution.max_consecutive_failures", "1.5", "must be int"),
+        ("camera.noise_model", "kinect", "camera.noise_model must be one of d435, dex"),
+        ("camera.intrinsics", "zed", "camera.intrinsics must be one of realsense, giga"),
     ]:
         with pytest.raises(ConfigError, match=re.escape(fragment)):
             apply_override(t, key, value)
+
+
+def test_the_dex_model_is_on_or_off_and_giga_names_its_camera():
+    from kgn_bench.config import apply_override
+
+    t = apply_override(load_task(TASKS / "pile.toml"), "camera.noise_model", "dex")
+    assert apply_override(t, "camera.depth_noise", "1").camera.depth_noise == 1.0
+    with pytest.raises(ConfigError, match="dex noise model is on or off"):
+        apply_override(t, "camera.depth_noise", "0.5")
+    assert apply_override(t, "camera.intrinsics", "giga").camera.intrinsics == "giga"
 
 
 def test_camera_ranges_parse_draw_per_trial_and_validate(tmp_path):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from kgn_bench.camera import REALSENSE
-from kgn_bench.sim.depth_noise import DepthNoise, DexNoise, occlusion_shadow, upsample_bilinear
+from kgn_bench.sim.depth_noise import DepthNoise, DexNoise, noise_model, occlusion_shadow, upsample_bilinear
 
 FX = REALSENSE.fx
 H, W = 120, 640
@@ -121,3 +121,15 @@ def test_bilinear_upsampling_interpolates_between_grid_points():
     assert up[1, 1] == pytest.approx(0.75 * 0.25 * 1.0 + 0.25 * 0.75 * 2.0 + 0.25 * 0.25 * 3.0)
     assert up[1, 2] == pytest.approx(0.75 * 0.75 * 1.0 + 0.25 * 0.25 * 2.0 + 0.25 * 0.75 * 3.0)
     assert up[0, 3] == pytest.approx(0.75 * 0.75 * 1.0)
+
+
+def test_the_noise_models_a_task_can_name_are_the_ones_built():
+    from kgn_bench.config import NOISE_MODELS
+
+    assert noise_model("d435", 0.0) is None and noise_model("dex", 0.0) is None
+    assert noise_model("d435", 1.5) == DepthNoise(1.5)
+    assert isinstance(noise_model("dex", 1.0), DexNoise)
+    for name in NOISE_MODELS:
+        assert noise_model(name, 1.0) is not None
+    with pytest.raises(ValueError, match="unknown depth noise model"):
+        noise_model("kinect", 1.0)

@@ -83,7 +83,7 @@ def test_the_generated_task_reference_lists_every_field_of_every_config_dataclas
         assert listed[cls.__name__] == {f.name for f in dataclasses.fields(cls)}, cls.__name__
     # Each row gives the default and a meaning; the TOML key of a renamed field is the task file's.
     assert "| `per_scene` | `objects_per_scene` | int | `5` |" in markdown
-    assert "| `depth_noise` | `depth_noise` | float | `0.0` | `depth_noise`: strength of the D435-like" in markdown
+    assert "| `depth_noise` | `depth_noise` | float | `0.0` | `depth_noise`: strength of the depth model" in markdown
     assert all(not row.rstrip().endswith("|  |") for row in markdown.splitlines() if row.startswith("| `"))
 
 

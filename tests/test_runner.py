@@ -456,6 +456,33 @@ def test_removing_placed_objects_is_part_of_a_rounds_identity_only(task):
     assert "remove_placed" not in run_identity(task, "oracle")["config"]["execution"]
 
 
+def test_camera_settings_added_later_enter_the_identity_only_when_set(task):
+    """Runs recorded before ``noise_model`` and ``intrinsics`` existed keep their identity at the defaults."""
+    from kgn_bench.bench.runner import run_identity
+
+    camera = run_identity(task, "oracle")["config"]["camera"]
+    assert "noise_model" not in camera and "intrinsics" not in camera
+    giga = replace(task, camera=replace(task.camera, intrinsics="giga", noise_model="dex", depth_noise=1.0))
+    camera = run_identity(giga, "oracle")["config"]["camera"]
+    assert camera["intrinsics"] == "giga" and camera["noise_model"] == "dex"
+
+
+def test_a_task_can_name_gigas_camera(tmp_path):
+    """A trial with ``[camera] intrinsics = "giga"`` renders and detects with the 540 px camera."""
+    from kgn_bench.camera import GIGA
+    from kgn_bench.detectors.oracle import OracleDetector
+
+    base = load_task(TASKS / "single_object.toml")
+    task = replace(base, objects=("cuboid",), trials=1,
+                   camera=replace(base.camera, intrinsics="giga", noise_model="dex", depth_noise=1.0))
+    seen = []
+    real = OracleDetector.detect
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(OracleDetector, "detect", lambda self, obs: (seen.append(obs), real(self, obs))[1])
+        run_benchmark(task, "oracle", tmp_path / "giga", workers=1, progress=False)
+    assert seen and seen[0].intrinsics == GIGA and seen[0].depth.shape == (480, 640)
+
+
 @pytest.mark.parametrize("remove", [True, False])
 def test_a_round_removes_each_object_it_puts_in_the_bin_when_asked(tmp_path, monkeypatch, remove):
     from kgn_bench.sim.scene import Scene

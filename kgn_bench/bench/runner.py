@@ -102,6 +102,13 @@ def _detector_fingerprint(instance: Any) -> str | None:
     return None if value is None else str(value)
 
 
+IDENTITY_DEFAULTS: dict[tuple[str, str], Any] = {("camera", "noise_model"): "d435",
+                                                  ("camera", "intrinsics"): "realsense"}
+"""Task settings added after runs were recorded, left out of a run's identity while they hold the value every
+earlier run had: runs recorded before the setting existed keep their identity (they resume, and the regression
+check still compares them record by record with their baselines)."""
+
+
 def run_identity(task: TaskConfig, detector: str, instance: Any = None) -> dict[str, Any]:
     """What makes two runs the same run (and so resumable into one folder): task, seed, config and content:
     for a learned detector the hash of its weights, for each imported object the hash of its files
@@ -112,6 +119,9 @@ def run_identity(task: TaskConfig, detector: str, instance: Any = None) -> dict[
 
     config = task.to_dict()
     del config["resources"]  # where the trials run does not change them (config.ResourceConfig)
+    for (section, key), default in IDENTITY_DEFAULTS.items():
+        if config[section][key] == default:
+            del config[section][key]
     if not task.clearance:  # one attempt a trial: nothing is left to remove (config.ExecutionConfig)
         del config["execution"]["remove_placed"]
     identity = {"task": task.name, "protocol": task.protocol, "detector": detector, "seed": task.seed,

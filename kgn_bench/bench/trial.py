@@ -30,13 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from kgn_bench.camera import orbit_pose
+from kgn_bench.camera import INTRINSICS, orbit_pose
 from kgn_bench.config import TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.geometry import quat_wxyz_from_matrix
 from kgn_bench.shapes import sample_shape
 from kgn_bench.sim.control import IK, Executor
-from kgn_bench.sim.depth_noise import DepthNoise
+from kgn_bench.sim.depth_noise import DepthNoise, DexNoise, noise_model
 from kgn_bench.sim.placement import PlacementConfig, add_pile_box, pack_objects, pile_objects, place_objects, settle
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.robot import PARK_Q, add_workcell, on_table
@@ -77,7 +77,7 @@ def check_cameras(task: TaskConfig, ik: IK | None = None) -> int:
     """Refuse a task whose cameras do not all see the workspace (``sim.view_check``): every distinct trial
     camera is checked on the empty work cell with the arm parked; ``ViewError`` names the first that fails,
     with its trial and coordinates. Returns the number of cameras checked."""
-    scene = Scene([], extend=_workcell(task))
+    scene = Scene([], INTRINSICS[task.camera.intrinsics], extend=_workcell(task))
     Executor(scene, ik or IK()).reset(PARK_Q)
     seen: set[tuple[float, float, float]] = set()
     with SceneRenderer(scene) as renderer:
@@ -141,7 +141,7 @@ def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]
     rng = np.random.default_rng([task.seed, index])
     arrange = ARRANGEMENTS[task.spec.arrangement]
     for attempt in range(SCENE_TRIES):
-        scene = Scene(trial_objects(task, index, rng), extend=_workcell(task))
+        scene = Scene(trial_objects(task, index, rng), INTRINSICS[task.camera.intrinsics], extend=_workcell(task))
         executor = Executor(scene, ik)
         executor.reset(PARK_Q)
         try:
@@ -242,7 +242,7 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
     max_attempts = 1 if task.spec.one_object else task.execution.max_attempts_per_object * len(names)
     consecutive = 0
     failed: list[np.ndarray] = []  # grasps (world; executed and as chosen) that failed in this trial
-    noise = DepthNoise(task.camera.depth_noise) if task.camera.depth_noise > 0 else None
+    noise = noise_model(task.camera.noise_model, task.camera.depth_noise)
     with SceneRenderer(scene) as renderer:
         while len(attempts) < max_attempts and consecutive < task.execution.max_consecutive_failures:
             if not any(on_table(scene, i) for i in range(len(names))):
@@ -273,7 +273,7 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
     return attempts, None
 
 
-def _observe(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | None,
+def _observe(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | DexNoise | None,
              rng: np.random.Generator) -> Observation:
     """The task camera's view ``cam`` (``T_world_cam``), with the depth model if any, as the detector's
     observation."""
@@ -282,7 +282,7 @@ def _observe(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: Dept
     return Observation(view.rgb, depth, scene.intrinsics, cam)
 
 
-def _capture(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | None,
+def _capture(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | DexNoise | None,
              rng: np.random.Generator, clock: _Clock, recording) -> Observation:
     """``_observe``, timed and recorded."""
     t = time.perf_counter()

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["DepthNoise", "DexNoise", "occlusion_shadow", "upsample_bilinear"]
+__all__ = ["DepthNoise", "DexNoise", "noise_model", "occlusion_shadow", "upsample_bilinear"]
 
 
 def occlusion_shadow(depth: np.ndarray, fx: float, baseline: float) -> np.ndarray:
@@ -153,3 +153,15 @@ class DexNoise:
             coarse = (max(1, h // self.gp_downsample), max(1, w // self.gp_downsample))
             out = out + upsample_bilinear(rng.normal(0.0, self.gp_sigma, coarse), (h, w))
         return np.where(depth > 0, out, 0.0).astype(depth.dtype)
+
+
+def noise_model(name: str, strength: float) -> DepthNoise | DexNoise | None:
+    """The depth model a task's camera names (``config.NOISE_MODELS``): None when ``strength`` is 0 (exact
+    depth), ``DepthNoise(strength)`` for ``d435``, ``DexNoise()`` for ``dex`` (on when ``strength`` > 0)."""
+    if strength == 0:
+        return None
+    if name == "d435":
+        return DepthNoise(strength)
+    if name == "dex":
+        return DexNoise()
+    raise ValueError(f"unknown depth noise model {name!r}")
