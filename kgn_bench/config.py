@@ -17,7 +17,7 @@ from typing import Any
 
 import tomllib
 
-from kgn_bench.camera import INTRINSICS
+from kgn_bench.camera import INTRINSICS, Intrinsics
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.execution import GRASP_DEPTH, PREGRASP_DISTANCE
 from kgn_bench.protocols import CLEARANCE_PROTOCOLS, CLUTTER_PROTOCOLS, Protocol
@@ -76,6 +76,11 @@ class CameraConfig:
     @property
     def fixed(self) -> bool:
         return all(lo == hi for lo, hi in map(self.span, CAMERA_SPANS))
+
+    @property
+    def pinhole(self) -> Intrinsics:
+        """The ``Intrinsics`` that ``intrinsics`` names (``camera.INTRINSICS``)."""
+        return INTRINSICS[self.intrinsics]
 
     def draw(self, rng) -> tuple[float, float, float]:
         """``(distance m, elevation °, azimuth °)`` of one trial: each range drawn uniformly from ``rng`` (in

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kgn_bench.camera import INTRINSICS, orbit_pose
+from kgn_bench.camera import orbit_pose
 from kgn_bench.config import TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.geometry import quat_wxyz_from_matrix
@@ -77,7 +77,7 @@ def check_cameras(task: TaskConfig, ik: IK | None = None) -> int:
     """Refuse a task whose cameras do not all see the workspace (``sim.view_check``): every distinct trial
     camera is checked on the empty work cell with the arm parked; ``ViewError`` names the first that fails,
     with its trial and coordinates. Returns the number of cameras checked."""
-    scene = Scene([], INTRINSICS[task.camera.intrinsics], extend=_workcell(task))
+    scene = Scene([], task.camera.pinhole, extend=_workcell(task))
     Executor(scene, ik or IK()).reset(PARK_Q)
     seen: set[tuple[float, float, float]] = set()
     with SceneRenderer(scene) as renderer:
@@ -141,7 +141,7 @@ def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]
     rng = np.random.default_rng([task.seed, index])
     arrange = ARRANGEMENTS[task.spec.arrangement]
     for attempt in range(SCENE_TRIES):
-        scene = Scene(trial_objects(task, index, rng), INTRINSICS[task.camera.intrinsics], extend=_workcell(task))
+        scene = Scene(trial_objects(task, index, rng), task.camera.pinhole, extend=_workcell(task))
         executor = Executor(scene, ik)
         executor.reset(PARK_Q)
         try:

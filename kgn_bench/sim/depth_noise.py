@@ -50,6 +50,14 @@ def occlusion_shadow(depth: np.ndarray, fx: float, baseline: float) -> np.ndarra
     return occluded | outside
 
 
+def _depth_image(depth: np.ndarray) -> np.ndarray:
+    """``depth`` as an array, refused unless it is a 2-D float image (what both models degrade)."""
+    depth = np.asarray(depth)
+    if depth.ndim != 2 or not np.issubdtype(depth.dtype, np.floating):
+        raise ValueError(f"depth must be a 2-D float image, got {depth.shape} {depth.dtype}")
+    return depth
+
+
 def _near_jump(depth: np.ndarray, jump: float) -> np.ndarray:
     """Valid pixels with a valid 8-neighbour whose depth differs by more than ``jump`` m."""
     h, w = depth.shape
@@ -89,9 +97,7 @@ class DepthNoise:
 
     def apply(self, depth: np.ndarray, fx: float, rng: np.random.Generator) -> np.ndarray:
         """A degraded copy of ``depth`` (H, W) float planar metres (0 = no return); ``fx`` px of this image."""
-        depth = np.asarray(depth)
-        if depth.ndim != 2 or not np.issubdtype(depth.dtype, np.floating):
-            raise ValueError(f"depth must be a 2-D float image, got {depth.shape} {depth.dtype}")
+        depth = _depth_image(depth)
         if self.strength == 0.0:
             return depth.copy()
         valid = depth > 0
@@ -144,9 +150,7 @@ class DexNoise:
     def apply(self, depth: np.ndarray, fx: float, rng: np.random.Generator) -> np.ndarray:
         """A degraded copy of ``depth`` (H, W) float planar metres (0 = no return); ``fx`` is not used (the model
         is in metres, not in disparity), it keeps the signature of ``DepthNoise.apply``."""
-        depth = np.asarray(depth)
-        if depth.ndim != 2 or not np.issubdtype(depth.dtype, np.floating):
-            raise ValueError(f"depth must be a 2-D float image, got {depth.shape} {depth.dtype}")
+        depth = _depth_image(depth)
         out = depth * rng.gamma(self.gamma_shape, self.gamma_scale)
         if rng.random() < self.gp_probability:
             h, w = depth.shape
