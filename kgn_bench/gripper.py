@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["GRIPPER", "GripperBox", "GripperGeometry", "box_corners"]
+__all__ = ["GRIPPER", "GRIPPERS", "PANDA_HAND", "GripperBox", "GripperGeometry", "box_corners"]
 
 
 @dataclass(frozen=True)
@@ -74,6 +74,8 @@ class GripperGeometry:
     """Closing servo damping (N·s/m of tendon speed)."""
     open_margin: float = 0.01
     """How much wider than a grasp's width (m) the jaws open before the approach."""
+    palm_extra_span: float = 0.005
+    """How far (m) the palm reaches past each fully open finger along the closing axis."""
 
     def opening(self, width: float | np.ndarray) -> float | np.ndarray:
         """The jaw opening used for a grasp of ``width``: ``min(width + open_margin, max_width)``."""
@@ -86,7 +88,8 @@ class GripperGeometry:
 
     @property
     def palm_half_span(self) -> float:
-        return self.max_width / 2.0 + self.finger_thickness + 0.005
+        """Half the palm's extent along the closing axis: the open fingers plus ``palm_extra_span``."""
+        return self.max_width / 2.0 + self.finger_thickness + self.palm_extra_span
 
     @property
     def finger_travel(self) -> float:
@@ -149,3 +152,17 @@ def box_corners(box: GripperBox, poses: np.ndarray) -> np.ndarray:
 
 
 GRIPPER = GripperGeometry()
+"""The benchmark's gripper: a 20 cm opening, carried by the arm."""
+
+PANDA_HAND = GripperGeometry(
+    max_width=0.08, finger_length=0.05, finger_thickness=0.012, finger_breadth=0.02, palm_depth=0.0584,
+    palm_breadth=0.065, palm_extra_span=0.05, finger_mass=0.1, palm_mass=0.81, wrist_length=0.0,
+    wrist_radius=0.0, grip_force=40.0, open_margin=0.0)
+"""The Franka Emika Panda hand as VGN and GIGA simulate it: 8 cm maximum opening, 5 cm finger depth (the
+fingers' length past the palm), the hand body 5.84 cm deep and about 20 cm across the closing axis, 20 N per
+finger. It floats free (``execution.hand = "floating"``), so it has no wrist behind it (``wrist_length`` 0),
+and it always opens fully before a grasp (``open_margin`` 0 and ``sim.floating_hand`` opens to
+``max_width``)."""
+
+GRIPPERS: dict[str, GripperGeometry] = {"default": GRIPPER, "panda": PANDA_HAND}
+"""The grippers a task can name (``[execution] gripper``)."""
