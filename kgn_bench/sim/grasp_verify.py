@@ -2,10 +2,9 @@
 
 For each grasp ``T_obj_grasp`` (object frame; the object starts at the world origin, far above the table):
 
-1. the hand (``sim.robot.build_gripper``, the same MJCF the arm carries) rides on a free body welded to a
-   mocap target (a weld, not a mocap parent: a teleported body has no velocity, so friction could not drag the
-   object along), placed so that its TCP is where the executor closes, ``depth`` (1 cm) past the grasp along
-   its approach: ``T_world_hand = T_obj_grasp · Trans(depth − tcp_offset, 0, 0)``; the jaws start at the
+1. the hand (``sim.robot.build_gripper``, the same MJCF the arm carries) rides on the free body welded to a
+   mocap target of ``sim.floating_hand.add_floating_hand``, placed so that its TCP is where the executor
+   closes, ``depth`` (1 cm) past the grasp along its approach: ``T_world_hand = T_obj_grasp · Trans(depth − tcp_offset, 0, 0)``; the jaws start at the
    executor's opening ``GRIPPER.opening(width)``;
 2. a grasp whose open gripper already overlaps the object by more than ``max_start_penetration`` fails: the
    arm reaches a grasp from its pre-grasp, so no real gripper gets there (and MuJoCo would push the overlap
@@ -33,7 +32,7 @@ from kgn_bench.execution import GRASP_DEPTH as APPROACH_DEPTH
 from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.base import Shape
-from kgn_bench.sim.robot import build_gripper
+from kgn_bench.sim.floating_hand import add_floating_hand
 from kgn_bench.sim.scene import PhysicsError, SceneObject, build_mjcf
 
 __all__ = ["ShakeTest", "verify_grasps"]
@@ -63,12 +62,7 @@ class _Rig:
 
     def __init__(self, shape: Shape) -> None:
         root = build_mjcf([SceneObject(shape, (0.6, 0.6, 0.6), make_pose(t=_START))])
-        root.worldbody.add("body", name="mount", mocap=True)
-        carrier = root.worldbody.add("body", name="carrier", gravcomp=1)
-        carrier.add("freejoint", name="carrier")
-        carrier.add("inertial", pos=(0, 0, 0), mass=0.1, diaginertia=(1e-4, 1e-4, 1e-4))
-        carrier.add("site", name="flange").attach(build_gripper())
-        root.equality.add("weld", body1="mount", body2="carrier", solref=(0.005, 1.0))
+        add_floating_hand(root, GRIPPER)
         self.model = mujoco.MjModel.from_xml_string(root.to_xml_string(), root.get_assets())
         self.data = mujoco.MjData(self.model)
         m = self.model

@@ -39,6 +39,7 @@ __all__ = [
     "WORKSPACE_HALF",
     "PlaceBin",
     "RobotIndex",
+    "add_floor",
     "add_workcell",
     "build_gripper",
     "build_robot",
@@ -132,6 +133,12 @@ def build_robot(g: GripperGeometry = GRIPPER) -> mjcf.RootElement:
     return arm
 
 
+def add_floor(root: mjcf.RootElement) -> None:
+    """Add the floor (a plane 0.75 m under the table top) to a scene's MJCF: what falls off the table lands."""
+    root.worldbody.add("geom", name="floor", type="plane", size=(3, 3, 0.1), pos=(0, 0, -0.75),
+                       rgba=(0.35, 0.33, 0.3, 1), contype=1, conaffinity=3, group=GROUP_ROBOT)
+
+
 def add_workcell(root: mjcf.RootElement, g: GripperGeometry = GRIPPER, place_bin: PlaceBin = BIN) -> None:
     """Add the robot (names prefixed ``arm7/``) on a pedestal, the place bin and a floor to a scene's MJCF."""
     world = root.worldbody
@@ -139,8 +146,7 @@ def add_workcell(root: mjcf.RootElement, g: GripperGeometry = GRIPPER, place_bin
     site.attach(build_robot(g))
     world.add("geom", name="pedestal", type="box", size=(0.09, 0.09, 0.35), pos=BASE_POSITION - (0, 0, 0.35),
               rgba=(0.3, 0.3, 0.32, 1), contype=0, conaffinity=0, group=GROUP_ROBOT)
-    world.add("geom", name="floor", type="plane", size=(3, 3, 0.1), pos=(0, 0, -0.75), rgba=(0.35, 0.33, 0.3, 1),
-              contype=1, conaffinity=3, group=GROUP_ROBOT)
+    add_floor(root)
     cx, cy = place_bin.centre
     h, t, H = place_bin.half, place_bin.wall, place_bin.height
     common = dict(type="box", rgba=(0.2, 0.35, 0.6, 1), contype=1, conaffinity=3, group=GROUP_ROBOT)
