@@ -20,19 +20,23 @@ import tomllib
 from kgn_bench.camera import INTRINSICS, Intrinsics
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.execution import GRASP_DEPTH, PREGRASP_DISTANCE
+from kgn_bench.gripper import GRIPPERS, GripperGeometry
 from kgn_bench.protocols import CLEARANCE_PROTOCOLS, CLUTTER_PROTOCOLS, Protocol
 from kgn_bench.protocols import PROTOCOLS as PROTOCOL_TABLE
 from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
 from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
-__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "NOISE_MODELS", "PROTOCOLS", "RAW_SELECTOR",
-           "SELECTOR_MODES", "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig", "SelectorConfig",
-           "TaskConfig", "apply_override", "load_task", "parse_section", "read_toml", "resolve_task", "task_from_dict"]
+__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "HANDS", "NOISE_MODELS", "PROTOCOLS",
+           "RAW_SELECTOR", "SELECTOR_MODES", "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig",
+           "SelectorConfig", "TaskConfig", "apply_override", "load_task", "parse_section", "read_toml", "resolve_task",
+           "task_from_dict"]
 
 PROTOCOLS = tuple(PROTOCOL_TABLE)
 """The protocol names (``kgn_bench.protocols.PROTOCOLS`` describes each)."""
 SCORES = ("confidence_minus_error", "paper_literal")
-SELECTOR_MODES = ("assisted", "raw")
+SELECTOR_MODES = ("assisted", "raw", "top")
+HANDS = ("arm", "floating")
+"""What carries the gripper (``[execution] hand``): the 7-DoF arm, or nothing (a free-floating hand, GIGA's)."""
 RAW_SELECTOR = {"approach_search": 0.0, "closing_search": 0.0, "centre_range": 0.0, "level_deg": 0.0,
                 "min_bite": 0.0, "palm_margin": 0.0, "occlusion": False}
 """What ``selector.mode = "raw"`` switches off: the pose search, centring, levelling, the bite, the palm margin
@@ -121,7 +125,9 @@ class SelectorConfig:
     ``mode``: ``assisted`` (the default: everything above) or ``raw``, detector-only execution: the
     highest-scoring candidate that passes the paper's checks (width, collision of the bare gripper with the
     observed cloud and the table, points between the fingers, IK) is executed exactly as predicted; raw
-    ignores the settings in ``RAW_SELECTOR`` (``effective``)."""
+    ignores the settings in ``RAW_SELECTOR`` (``effective``). ``top``: VGN's and GIGA's evaluation, the
+    detector alone: its highest-scoring candidate whose width the gripper can open to and whose origin lies
+    in the workspace is executed as predicted, with no other check and no retry memory."""
 
     mode: str = "assisted"
     score: str = "confidence_minus_error"
@@ -155,7 +161,13 @@ class ExecutionConfig:
     ``remove_placed``: in a round of several objects, an object put in the bin leaves the scene once its
     success is counted (``Scene.retire_object``), as VGN and GIGA remove a grasped object; it then makes no
     contacts, which were most of a round's physics. Off, it stays in the bin for the rest of the round (the
-    protocol before 2026-12-05). No effect on ``single_object``."""
+    protocol before 2026-12-05). No effect on ``single_object``.
+    ``hand``: ``arm`` (the default: the 7-DoF arm carries the gripper, ``sim.control``) or ``floating`` (a
+    gripper floating free, executed GIGA's way: ``sim.floating_hand``; the distances, timings and success rule
+    are then GIGA's, ``kgn_bench.giga``, and the settings above other than ``max_consecutive_failures``,
+    ``max_attempts_per_object``, ``settle_time`` and ``remove_placed`` do not apply).
+    ``gripper``: the gripper by name (``gripper.GRIPPERS``): ``default`` (the benchmark's, 20 cm opening) or
+    ``panda`` (the Panda hand VGN and GIGA use, 8 cm; floating only)."""
 
     pregrasp_distance: float = PREGRASP_DISTANCE
     grasp_depth: float = GRASP_DEPTH
@@ -166,6 +178,13 @@ class ExecutionConfig:
     max_attempts_per_object: int = 3
     settle_time: float = 0.3
     remove_placed: bool = True
+    hand: str = "arm"
+    gripper: str = "default"
+
+    @property
+    def geometry(self) -> GripperGeometry:
+        """The ``GripperGeometry`` that ``gripper`` names (``gripper.GRIPPERS``)."""
+        return GRIPPERS[self.gripper]
 
 
 @dataclass(frozen=True)
@@ -458,8 +477,16 @@ def validate(cfg: TaskConfig, where: str = "task") -> None:
         if not (lo_ok <= lo <= hi <= hi_ok):
             raise ConfigError(f"{where}: camera.{name} must lie in [{lo_ok:g}, {hi_ok:g}]{unit} (a range as "
                               f"[lo, hi] with lo ≤ hi), got {getattr(cfg.camera, name)!r}")
-    if cfg.execution.max_consecutive_failures < 1:
+    ex = cfg.execution
+    if ex.max_consecutive_failures < 1:
         raise ConfigError(f"{where}: execution.max_consecutive_failures must be ≥ 1")
+    if ex.hand not in HANDS:
+        raise ConfigError(f"{where}: execution.hand must be one of {', '.join(HANDS)}, got {ex.hand!r}")
+    if ex.gripper not in GRIPPERS:
+        raise ConfigError(f"{where}: execution.gripper must be one of {', '.join(GRIPPERS)}, got {ex.gripper!r}")
+    if ex.gripper != "default" and ex.hand == "arm":
+        raise ConfigError(f"{where}: the arm carries the default gripper: execution.gripper = {ex.gripper!r} needs "
+                          'execution.hand = "floating"')
 
 
 def _validate_camera(cam: CameraConfig, where: str) -> None:

@@ -27,7 +27,9 @@ class Protocol:
     a scenes-cleared rate in the summary; the per-object rate is objects put in the bin / placed, else
     successes / attempts. ``clutter``: VGN/GIGA's clutter round, the report's hard tier: the round ends as soon
     as an attempt executes nothing, the success rate (GSR) counts executed grasps only, and the records count
-    the objects that left the table (``fell_at_setup``, ``fallen``)."""
+    the objects that left the table (``fell_at_setup``, ``fallen``). ``giga``: GIGA's own rounds
+    (``kgn_bench.giga``): objects drawn with replacement and sized GIGA's way, and an object whose origin leaves
+    the workspace cube leaves the round (at set-up it never entered it); reported in a tier of their own."""
 
     name: str
     one_object: bool = False
@@ -35,6 +37,18 @@ class Protocol:
     pile_box: bool = False
     clearance: bool = True
     clutter: bool = False
+    giga: bool = False
+
+    @property
+    def draws_with_replacement(self) -> bool:
+        """Whether a round's objects are drawn from the set with replacement (GIGA's), else without while the
+        set allows."""
+        return self.giga
+
+    @property
+    def workspace_cube(self) -> bool:
+        """Whether objects outside GIGA's workspace cube leave the round (``giga.in_workspace``)."""
+        return self.giga
 
     @property
     def park_between_attempts(self) -> bool:
@@ -63,8 +77,8 @@ class Protocol:
 
     @property
     def report_tier(self) -> str:
-        """The report table its runs go to: ``hard`` (clutter) or ``main``."""
-        return "hard" if self.clutter else "main"
+        """The report table its runs go to: ``giga`` (GIGA's rounds), ``hard`` (clutter) or ``main``."""
+        return "giga" if self.giga else "hard" if self.clutter else "main"
 
 
 PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
@@ -72,6 +86,8 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
     Protocol("multi_object"),
     Protocol("pile", arrangement="pile", pile_box=True, clutter=True),
     Protocol("packed", arrangement="packed", clutter=True),
+    Protocol("giga_pile", arrangement="giga_pile", pile_box=True, clutter=True, giga=True),
+    Protocol("giga_packed", arrangement="giga_packed", clutter=True, giga=True),
 )}
 """Every protocol by name, in the order the documentation lists them."""
 

@@ -448,3 +448,36 @@ def test_raw_mode_executes_the_candidate_exactly_as_predicted(points, ik):
     assert sel.index == 0
     assert abs(sel.grasp[2, 2]) == pytest.approx(abs(tilted[2, 2]), abs=1e-9) and abs(tilted[2, 2]) > 0.1
     assert SelectorConfig(mode="raw", approach_search=0.05).effective() == RAW.effective()
+
+
+FLOATING = ExecutionConfig(hand="floating", gripper="panda")
+
+
+def test_top_mode_executes_the_best_candidate_with_no_check_but_the_width(points, ik):
+    """GIGA's evaluation: the best-scoring candidate the hand can open to, as predicted (a deep grasp that
+    collides with the observed box included); no retry memory."""
+    top = SelectorConfig(mode="top")
+    deep = _pose((0.0, 0.0, -0.02))
+    wide = _pose((0.0, 0.0, 0.03))
+    sel = select_grasp(np.stack([wide, deep]), np.array([0.09, 0.06]), np.array([0.9, 0.8]), np.full(2, np.nan),
+                       points, None, top, FLOATING)
+    assert sel.index == 1 and sel.rejected["width"] == 1  # 9 cm is more than the Panda hand's 8 cm
+    np.testing.assert_allclose(sel.grasp, deep, atol=1e-12)  # no grasp_depth push, no shift
+    np.testing.assert_allclose(sel.pregrasp[:3, 3], deep[:3, 3] + [0.0, 0.0, 0.05], atol=1e-12)
+    assert sel.q_pregrasp is None and sel.q_grasp is None
+    again = select_grasp(np.stack([deep]), np.array([0.06]), np.ones(1), np.full(1, np.nan), points, None, top,
+                         FLOATING, failed=sel.tried)
+    assert again.index == 0
+    # the same deep grasp under the raw selector, still floating: the observed box stops it
+    raw = select_grasp(np.stack([deep]), np.array([0.06]), np.ones(1), np.full(1, np.nan), points, None, RAW,
+                       FLOATING)
+    assert raw.index is None and raw.rejected["collision"] == 1
+
+
+def test_the_selector_takes_ik_exactly_for_the_arm(points, ik):
+    with pytest.raises(ValueError, match="IK"):
+        select_grasp(np.stack([_pose((0.0, 0.0, 0.03))]), np.array([0.06]), np.ones(1), np.full(1, np.nan), points,
+                     ik, CFG, FLOATING)
+    with pytest.raises(ValueError, match="IK"):
+        select_grasp(np.stack([_pose((0.0, 0.0, 0.03))]), np.array([0.06]), np.ones(1), np.full(1, np.nan), points,
+                     None, CFG, EXEC)

@@ -9,6 +9,10 @@ swings about the grasp point still counts as lifted),
 ``dropped_transport`` (lost on the way or released outside the bin), ``physics_error``. Success: the
 object is inside the bin after release, also when it slipped from the jaws just before (over the bin there
 is nowhere else to fall; the attempt's detail says so). All poses are world frame.
+
+With a floating hand (``execution.hand = "floating"``) an attempt is GIGA's instead (``execute_floating``,
+``sim.floating_hand.execute_grasp``): no arm, no transport; success is an object still touching the hand, jaws
+apart, after the lift; failures are ``collision`` (at the pre-grasp), ``missed`` and ``dropped_lift``.
 """
 
 from __future__ import annotations
@@ -20,13 +24,16 @@ import numpy as np
 
 from kgn_bench.config import ExecutionConfig
 from kgn_bench.gripper import GRIPPER
+from kgn_bench.sim import floating_hand
 from kgn_bench.sim.control import IK, Executor, MotionAborted
+from kgn_bench.sim.floating_hand import FloatingHand
 from kgn_bench.sim.robot import BIN, PARK_Q, READY_Q
 from kgn_bench.sim.scene import PhysicsError, Scene
 
 from .selector import Selection
 
-__all__ = ["FAILURE_REASONS", "NOT_EXECUTED", "AttemptResult", "bin_drop_q", "execute_grasp", "held_object"]
+__all__ = ["FAILURE_REASONS", "NOT_EXECUTED", "AttemptResult", "bin_drop_q", "execute_floating", "execute_grasp",
+           "held_object"]
 
 FAILURE_REASONS = ("no_candidate", "unreachable", "missed", "dropped_lift", "dropped_transport", "collision",
                    "physics_error", "detector_error")
@@ -162,3 +169,14 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
         return AttemptResult(None, held, "" if carried else "slipped from the jaws over the bin, fell in")
     except PhysicsError as e:
         return AttemptResult("physics_error", detail=str(e))
+
+
+def execute_floating(hand: FloatingHand, sel: Selection) -> AttemptResult:
+    """Execute a selected grasp with the floating hand, GIGA's way (contact on the approach allowed, as in
+    their evaluation), and report the outcome; the hand is parked afterwards."""
+    assert sel.grasp is not None
+    try:
+        out = floating_hand.execute_grasp(hand, sel.grasp, allow_contact=True)
+    except PhysicsError as e:
+        return AttemptResult("physics_error", detail=str(e))
+    return AttemptResult(out.reason, out.object, out.detail)

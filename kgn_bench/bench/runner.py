@@ -103,7 +103,9 @@ def _detector_fingerprint(instance: Any) -> str | None:
 
 
 IDENTITY_DEFAULTS: dict[tuple[str, str], Any] = {("camera", "noise_model"): "d435",
-                                                  ("camera", "intrinsics"): "realsense"}
+                                                  ("camera", "intrinsics"): "realsense",
+                                                  ("execution", "hand"): "arm",
+                                                  ("execution", "gripper"): "default"}
 """Task settings added after runs were recorded, left out of a run's identity while they hold the value every
 earlier run had: runs recorded before the setting existed keep their identity (they resume, and the regression
 check still compares them record by record with their baselines)."""

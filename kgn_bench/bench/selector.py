@@ -71,9 +71,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kgn_bench import giga
 from kgn_bench.config import ExecutionConfig, SelectorConfig
 from kgn_bench.grasp import flip_180, grasp_rotation_error
-from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
+from kgn_bench.gripper import GRIPPER, GripperBox, GripperGeometry, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q, WORKSPACE_HALF
 
@@ -209,13 +210,14 @@ def _lowest_z(boxes: list[GripperBox], pose: np.ndarray) -> float:
     return float(min(box_corners(b, pose[None])[0, :, 2].min() for b in boxes))
 
 
-def _grasp_depths(pose: np.ndarray, shifts: np.ndarray, width: float, depth: float, clearance: float) -> np.ndarray:
+def _grasp_depths(pose: np.ndarray, shifts: np.ndarray, width: float, depth: float, clearance: float,
+                  g: GripperGeometry = GRIPPER) -> np.ndarray:
     """(K,) how far (≤ ``depth``) each shifted grasp (``pose`` moved by grasp-frame ``shifts`` (K, 3)) can
     move along its approach with the fingers' lowest corner ``clearance`` above the table top (z = 0)."""
     az = pose[2, 0]
-    if az >= -1e-6:
+    if az >= -1e-6 or depth == 0.0:
         return np.full(len(shifts), depth)
-    fingers = [GRIPPER.finger_box(s, width) for s in (1, -1)]
+    fingers = [g.finger_box(s, width) for s in (1, -1)]
     low = _lowest_z(fingers, pose) + shifts @ pose[2, :3]
     return np.clip((low - clearance) / -az, 0.0, depth)
 
@@ -249,7 +251,8 @@ _CHECKS = (None, "collision", "occluded", "enclosure")
 
 
 def _failures(pose: np.ndarray, shifts: np.ndarray, width: float, local: np.ndarray, boxes: list[GripperBox],
-              palm_samples: np.ndarray, view: DepthView | None, cfg: SelectorConfig) -> np.ndarray:
+              palm_samples: np.ndarray, view: DepthView | None, cfg: SelectorConfig,
+              g: GripperGeometry = GRIPPER) -> np.ndarray:
     """For ``pose`` moved by each grasp-frame shift (K, 3): the first gripper-prior check it fails, as an
     index into ``_CHECKS`` (0 = passes all). ``local``: observed points in the grasp frame of ``pose``;
     ``boxes``: the swept gripper boxes; ``width``: the candidate's (closing region) width."""
@@ -262,7 +265,7 @@ def _failures(pose: np.ndarray, shifts: np.ndarray, width: float, local: np.ndar
         world = (palm_samples[None] + shifts[todo, None]) @ R.T + t
         hidden = view.hidden(world.reshape(-1, 3), cfg.shadow_margin).reshape(len(todo), -1).any(axis=1)
         code[todo[hidden]] = 2
-    enclosed, bite = _enclosure(local, GRIPPER.closing_region(width), shifts)
+    enclosed, bite = _enclosure(local, g.closing_region(width), shifts)
     if cfg.min_bite > 0:
         tips = _lowest_z([b for b in boxes if b.name.endswith("finger")], pose) + shifts @ R[2]
         shallow = (bite < cfg.min_bite) & (tips > cfg.table_clearance + _AT_TABLE)
@@ -273,37 +276,38 @@ def _failures(pose: np.ndarray, shifts: np.ndarray, width: float, local: np.ndar
 
 
 def centre_offset(local: np.ndarray, open_w: float, closing_world: np.ndarray, ray_world: np.ndarray,
-                  limit: float, min_points: int) -> float:
+                  limit: float, min_points: int, g: GripperGeometry = GRIPPER) -> float:
     """The shift (m) along the closing axis that centres the observed points between the open jaws.
 
-    ``local``: observed points in the grasp frame; the ones inside ``GRIPPER.closing_region(open_w)`` span
+    ``local``: observed points in the grasp frame; the ones inside ``g.closing_region(open_w)`` span
     [z_min, z_max]; the shift is ``(z_min + z_max) / 2`` clipped to ±``limit``. Zero when fewer than
     ``min_points`` points are there, or when the closing axis (world, unit) is more than ``CENTRE_VIEW_DEG``
     from perpendicular to ``ray_world`` (camera → grasp origin, unit).
     """
     if abs(float(closing_world @ ray_world)) > np.sin(np.deg2rad(CENTRE_VIEW_DEG)):
         return 0.0
-    z = closing_z(local, open_w)
+    z = closing_z(local, open_w, g)
     if len(z) < min_points:
         return 0.0
     return float(np.clip((z.min() + z.max()) / 2.0, -limit, limit))
 
 
-def closing_z(local: np.ndarray, open_w: float) -> np.ndarray:
-    """The z (closing axis) coordinates of the grasp-frame points ``local`` inside
-    ``GRIPPER.closing_region(open_w)``."""
-    region = GRIPPER.closing_region(open_w)
+def closing_z(local: np.ndarray, open_w: float, g: GripperGeometry = GRIPPER) -> np.ndarray:
+    """The z (closing axis) coordinates of the grasp-frame points ``local`` inside the closing region of
+    gripper ``g`` at opening ``open_w``."""
+    region = g.closing_region(open_w)
     return local[np.all(np.abs(local - region.centre) < region.half, axis=1), 2]
 
 
-def centring_blind(pose: np.ndarray, shift: np.ndarray, open_w: float, view: DepthView, margin: float) -> bool:
+def centring_blind(pose: np.ndarray, shift: np.ndarray, open_w: float, view: DepthView, margin: float,
+                   g: GripperGeometry = GRIPPER) -> bool:
     """Whether the finger that a centring ``shift`` (grasp frame of the world ``pose``, its z the centring
     step) moves towards the observed points would stand in space the camera cannot see: any of its box's
     sample points lies more than ``margin`` behind the observed surface (``DepthView.hidden``). A shift by
     dz > 0 moves the −z (right) finger inwards, dz < 0 the +z (left) one. The centring trusts the seen extent
     to be the object's; where that finger goes blind, the object may go on unseen."""
     side = -1 if shift[2] > 0 else 1
-    samples = _box_samples(GRIPPER.finger_box(side, open_w)) + shift
+    samples = _box_samples(g.finger_box(side, open_w)) + shift
     world = samples @ pose[:3, :3].T + pose[:3, 3]
     return bool(view.hidden(world, margin).any())
 
@@ -355,15 +359,18 @@ class GraspSelector:
     world-frame ``T_world_grasp``.
     """
 
-    def __init__(self, cfg: SelectorConfig, execution: ExecutionConfig, ik: IK) -> None:
+    def __init__(self, cfg: SelectorConfig, execution: ExecutionConfig, ik: IK | None) -> None:
         self.mode = cfg.mode
         cfg = cfg.effective()
         self.cfg, self.execution, self.ik = cfg, execution, ik
-        self.grasp_depth = execution.grasp_depth
-        self.back = execution.pregrasp_distance
-        self.ready_closing = ik.tcp_pose(READY_Q)[:3, 2]
-        self.palm_samples = np.concatenate([_box_samples(b.swept(self.back))
-                                            for b in (GRIPPER.palm_box(), GRIPPER.wrist_box())])
+        self.g = g = execution.geometry
+        floating = execution.hand == "floating"
+        if (ik is None) != floating:
+            raise ValueError("the selector needs the arm's IK exactly when the task's hand is the arm")
+        self.grasp_depth = 0.0 if floating else execution.grasp_depth
+        self.back = giga.PREGRASP_DISTANCE if floating else execution.pregrasp_distance
+        self.ready_closing = None if ik is None else ik.tcp_pose(READY_Q)[:3, 2]
+        self.palm_samples = np.concatenate([_box_samples(b.swept(self.back)) for b in (g.palm_box(), g.wrist_box())])
         self.offsets = search_offsets(cfg)
         # every grasp-frame point a check can look at lies in the boxes' union, moved by the largest shifts
         self.margin = np.array([float(np.abs(self.offsets[:, 0]).max(initial=0.0)) + self.grasp_depth, 0.0,
@@ -398,15 +405,18 @@ class GraspSelector:
             if not over_table[k]:
                 sel.rejected["workspace"] += 1
                 continue
-            if repeat[k]:
+            if repeat[k] and self.mode != "top":
                 sel.rejected["repeat"] += 1
                 continue
             w = float(widths[k])
-            if not (0.0 < w <= GRIPPER.max_width):
+            if not (0.0 < w <= self.g.max_width):
                 sel.rejected["width"] += 1
                 continue
-            open_w = float(GRIPPER.opening(w))
-            shifted, code = self._prior(poses[k], w, open_w, points, view)
+            open_w = float(self.g.opening(w))
+            if self.mode == "top":
+                shifted, code = poses[k], 0
+            else:
+                shifted, code = self._prior(poses[k], w, open_w, points, view)
             if shifted is None:
                 sel.rejected[_CHECKS[code]] += 1
                 continue
@@ -426,15 +436,16 @@ class GraspSelector:
         """The candidate moved by the first search shift that passes the gripper prior, then centred on the
         observed points between the jaws; ``(None, code)`` with the failed check of the unshifted pose."""
         cfg = self.cfg
+        g = self.g
         boxes = [(_grown(b, cfg.palm_margin) if b.name in ("palm", "wrist") else b).swept(self.back)
-                 for b in GRIPPER.boxes(open_w)]
+                 for b in g.boxes(open_w)]
         R = pose[:3, :3]
         local0 = (points - pose[:3, 3]) @ R  # observed points in the candidate's grasp frame
-        lo, hi = _union_bounds([*boxes, GRIPPER.closing_region(open_w)])
+        lo, hi = _union_bounds([*boxes, g.closing_region(open_w)])
         local0 = local0[np.all((local0 > lo - self.margin) & (local0 < hi + self.margin), axis=1)]
         shifts = np.c_[self.offsets[:, 0], np.zeros(len(self.offsets)), self.offsets[:, 1]]
-        shifts[:, 0] += _grasp_depths(pose, shifts, open_w, self.grasp_depth, cfg.table_clearance)
-        args = (w, local0, boxes, self.palm_samples, view if cfg.occlusion else None, cfg)
+        shifts[:, 0] += _grasp_depths(pose, shifts, open_w, self.grasp_depth, cfg.table_clearance, g)
+        args = (w, local0, boxes, self.palm_samples, view if cfg.occlusion else None, cfg, g)
         codes = _failures(pose, shifts[:1], *args)  # most candidates pass or fail where they are
         if codes[0] != 0 and len(shifts) > 1:
             codes = np.concatenate([codes, _failures(pose, shifts[1:], *args)])
@@ -445,12 +456,12 @@ class GraspSelector:
         if cfg.centre_range > 0 and view is not None:
             ray = pose[:3, 3] + R @ shift - view.camera_pose[:3, 3]
             dz = centre_offset(local0 - shift, open_w, R[:, 2], ray / np.linalg.norm(ray), cfg.centre_range,
-                               cfg.enclosed_points)
+                               cfg.enclosed_points, g)
             centred = shift + np.array([0.0, 0.0, dz])
             if dz != 0.0 and _failures(pose, centred[None], *args)[0] == 0:
-                z = closing_z(local0 - shift, open_w)
+                z = closing_z(local0 - shift, open_w, g)
                 partial = z.max() - z.min() < CENTRE_MIN_SPAN * w  # perhaps one wall of the object
-                if not (partial and centring_blind(pose, centred, open_w, view, cfg.shadow_margin)):
+                if not (partial and centring_blind(pose, centred, open_w, view, cfg.shadow_margin, g)):
                     shift = centred
         moved = pose.copy()
         moved[:3, 3] += R @ shift
@@ -458,7 +469,12 @@ class GraspSelector:
 
     def _reach(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
         """``(grasp, pregrasp, q_pregrasp, q_grasp)`` for the first of the two symmetric forms of ``pose``
-        (the one whose closing axis is nearer the ready wrist's first) that the arm reaches, else None."""
+        (the one whose closing axis is nearer the ready wrist's first) that the arm reaches, else None. A
+        floating hand (no IK) reaches every pose, as predicted, with no joint solutions."""
+        if self.ik is None:
+            pre = pose.copy()
+            pre[:3, 3] -= self.back * pose[:3, 0]
+            return pose, pre, None, None
         flipped = flip_180(pose[None])[0]
         forms = (pose, flipped) if pose[:3, 2] @ self.ready_closing >= 0 else (flipped, pose)
         for form in forms:
@@ -474,7 +490,7 @@ class GraspSelector:
 
 
 def select_grasp(poses: np.ndarray, widths: np.ndarray, confidences: np.ndarray, errors: np.ndarray,
-                 points: np.ndarray, ik: IK, cfg: SelectorConfig, execution: ExecutionConfig,
+                 points: np.ndarray, ik: IK | None, cfg: SelectorConfig, execution: ExecutionConfig,
                  failed: np.ndarray | None = None, view: DepthView | None = None) -> Selection:
     """``GraspSelector(cfg, execution, ik).select(...)`` in one call."""
     return GraspSelector(cfg, execution, ik).select(poses, widths, confidences, errors, points, failed, view)

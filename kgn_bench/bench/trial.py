@@ -37,13 +37,22 @@ from kgn_bench.geometry import quat_wxyz_from_matrix
 from kgn_bench.shapes import sample_shape
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.depth_noise import DepthNoise, DexNoise, noise_model
-from kgn_bench.sim.placement import PlacementConfig, add_pile_box, pack_objects, pile_objects, place_objects, settle
+from kgn_bench.sim.floating_hand import FloatingHand, add_floating_cell
+from kgn_bench.sim.placement import (
+    PlacementConfig,
+    add_pile_box,
+    pack_objects,
+    pile_objects,
+    place_objects,
+    retire_outside_workspace,
+    settle,
+)
 from kgn_bench.sim.render import SceneRenderer
 from kgn_bench.sim.robot import PARK_Q, add_workcell, on_table
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
 from kgn_bench.sim.view_check import check_view
 
-from .attempt import NOT_EXECUTED, AttemptResult, execute_grasp
+from .attempt import NOT_EXECUTED, AttemptResult, execute_floating, execute_grasp
 from .records import AttemptRecord, TrialRecord
 from .selector import DepthView, GraspSelector, Selection
 
@@ -78,7 +87,7 @@ def check_cameras(task: TaskConfig, ik: IK | None = None) -> int:
     camera is checked on the empty work cell with the arm parked; ``ViewError`` names the first that fails,
     with its trial and coordinates. Returns the number of cameras checked."""
     scene = Scene([], task.camera.pinhole, extend=_workcell(task))
-    Executor(scene, ik or IK()).reset(PARK_Q)
+    _hand(task, scene, ik or IK())
     seen: set[tuple[float, float, float]] = set()
     with SceneRenderer(scene) as renderer:
         for index in range(1 if task.camera.fixed else task.n_trials):
@@ -130,20 +139,48 @@ ARRANGEMENTS: dict[str, Callable[[Scene, np.random.Generator], None]] = {
 """How a protocol puts its objects on the table (``Protocol.arrangement``), from the trial's generator."""
 
 
+Hand = Executor | FloatingHand
+"""What executes a trial's grasps: the arm's executor, or the floating hand (``execution.hand``)."""
+
+
 def _workcell(task: TaskConfig) -> Callable[..., None]:
-    """The MJCF extension of the task's work cell: the arm, bin and camera, with the pile box if the protocol
-    drops its objects into one."""
-    return _pile_workcell if task.spec.pile_box else add_workcell
+    """The MJCF extension of the task's work cell: the arm and bin (or the floating hand), with the pile box if
+    the protocol drops its objects into one."""
+    def extend(root) -> None:
+        if task.execution.hand == "floating":
+            add_floating_cell(root, task.execution.geometry)
+        else:
+            add_workcell(root)
+        if task.spec.pile_box:
+            add_pile_box(root)
+
+    return extend
 
 
-def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]:
-    """The trial's work cell with its objects placed and settled, the arm parked (retried on a blow-up)."""
+def _hand(task: TaskConfig, scene: Scene, ik: IK) -> Hand:
+    """What executes the grasps in ``scene``, out of the camera's way: the arm parked, or the hand floating
+    beyond the camera's far plane."""
+    if task.execution.hand == "floating":
+        hand = FloatingHand(scene, task.execution.geometry)
+        hand.park()
+        return hand
+    executor = Executor(scene, ik)
+    executor.reset(PARK_Q)
+    return executor
+
+
+def _ik(hand: Hand) -> IK | None:
+    """The arm's IK for the selector; None for the floating hand, which reaches every pose."""
+    return hand.ik if isinstance(hand, Executor) else None
+
+
+def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Hand]:
+    """The trial's work cell with its objects placed and settled, the hand parked (retried on a blow-up)."""
     rng = np.random.default_rng([task.seed, index])
     arrange = ARRANGEMENTS[task.spec.arrangement]
     for attempt in range(SCENE_TRIES):
         scene = Scene(trial_objects(task, index, rng), task.camera.pinhole, extend=_workcell(task))
-        executor = Executor(scene, ik)
-        executor.reset(PARK_Q)
+        executor = _hand(task, scene, ik)
         try:
             arrange(scene, rng)
         except PhysicsError:
@@ -152,11 +189,6 @@ def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Executor]
             continue
         return scene, executor
     raise PhysicsError(f"trial {index}: no stable scene")
-
-
-def _pile_workcell(root) -> None:
-    add_workcell(root)
-    add_pile_box(root)
 
 
 def _error_line(e: BaseException) -> str:
@@ -193,7 +225,7 @@ def _prepare_detector(detector: Detector, task: TaskConfig, index: int, scene: S
         detector.attach(scene)  # type: ignore[attr-defined]
 
 
-def _open_recording(record: Path | None, task: TaskConfig, index: int, scene: Scene, executor: Executor):
+def _open_recording(record: Path | None, task: TaskConfig, index: int, scene: Scene, executor: Hand):
     if record is None:
         from kgn_bench.bench.trial_recording import NO_RECORDING
 
@@ -232,7 +264,7 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
                          max(0, len(placed) - removed - left), clock)
 
 
-def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, detector: Detector, clock: _Clock,
+def _episode(task: TaskConfig, index: int, scene: Scene, executor: Hand, detector: Detector, clock: _Clock,
              names: list[str], recording, until: int | None = None) -> tuple[list[AttemptRecord], Capture | None]:
     """Capture, detect, select and execute until the protocol ends; returns the attempt records. With ``until``
     = K, stop at attempt K's selection instead, not executing it, and return it as a ``Capture`` too (None if
@@ -251,7 +283,7 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Executor, det
                            clock, recording)
             if until == len(attempts) + 1:
                 cands = _detect(detector, obs)
-                sel = _select(task, executor.ik, cands, obs, np.array(failed).reshape(-1, 4, 4))
+                sel = _select(task, _ik(executor), cands, obs, np.array(failed).reshape(-1, 4, 4))
                 return attempts, Capture(until, scene, obs, cands, sel)
             try:
                 attempt, sel, cands = _attempt(task, scene, executor, detector, obs, clock, names,
@@ -300,7 +332,7 @@ def _detect(detector: Detector, obs: Observation) -> Candidates:
     return cands
 
 
-def _select(task: TaskConfig, ik: IK, cands: Candidates, obs: Observation, failed: np.ndarray) -> Selection:
+def _select(task: TaskConfig, ik: IK | None, cands: Candidates, obs: Observation, failed: np.ndarray) -> Selection:
     """The task's selector over the candidates (world frame), on the points and depth of ``obs``."""
     points = obs.points_world(stride=task.selector.point_stride)
     return GraspSelector(task.selector, task.execution, ik).select(
@@ -347,7 +379,7 @@ def _grasp_pose(sel: Selection | None) -> list[float] | None:
     return [round(float(v), 6) for v in (*T[:3, 3], *quat_wxyz_from_matrix(T[:3, :3]))]
 
 
-def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detector, obs: Observation,
+def _attempt(task: TaskConfig, scene: Scene, executor: Hand, detector: Detector, obs: Observation,
              clock: _Clock, names: list[str], failed: np.ndarray
              ) -> tuple[AttemptRecord, Selection | None, Candidates | None]:
     t = time.perf_counter()
@@ -360,10 +392,22 @@ def _attempt(task: TaskConfig, scene: Scene, executor: Executor, detector: Detec
         result = AttemptResult("detector_error", detail=_error_line(e))
     else:
         t = clock.add("detect", t)
-        sel = _select(task, executor.ik, cands, obs, failed)
+        sel = _select(task, _ik(executor), cands, obs, failed)
         t = clock.add("select", t)
         if sel.index is None:
             result = AttemptResult(sel.reason or "no_candidate")
+        elif isinstance(executor, FloatingHand):
+            result = execute_floating(executor, sel)
+            if result.reason is None and result.object is not None:
+                scene.retire_object(result.object)  # GIGA removes a grasped object at once
+            clock.add("simulate", t)
+            if task.spec.park_between_attempts and result.reason != "physics_error":
+                try:
+                    executor.wait(task.execution.settle_time)
+                    if task.spec.workspace_cube:
+                        retire_outside_workspace(scene)
+                except PhysicsError as e:
+                    result = AttemptResult("physics_error", detail=str(e))
         else:
             park = task.spec.park_between_attempts
             result = execute_grasp(scene, executor, sel, task.execution, park=park)

@@ -40,7 +40,7 @@ from kgn_bench import giga
 from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix
 from kgn_bench.gripper import GripperGeometry
 from kgn_bench.sim.robot import add_floor, build_gripper
-from kgn_bench.sim.scene import PhysicsError, Scene
+from kgn_bench.sim.scene import Scene
 
 __all__ = ["CONTROL_DT", "PARK_POSITION", "FloatingHand", "FloatingOutcome", "add_floating_cell", "add_floating_hand",
            "execute_grasp", "lift_pose"]

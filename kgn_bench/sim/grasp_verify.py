@@ -4,8 +4,9 @@ For each grasp ``T_obj_grasp`` (object frame; the object starts at the world ori
 
 1. the hand (``sim.robot.build_gripper``, the same MJCF the arm carries) rides on the free body welded to a
    mocap target of ``sim.floating_hand.add_floating_hand``, placed so that its TCP is where the executor
-   closes, ``depth`` (1 cm) past the grasp along its approach: ``T_world_hand = T_obj_grasp · Trans(depth − tcp_offset, 0, 0)``; the jaws start at the
-   executor's opening ``GRIPPER.opening(width)``;
+   closes, ``depth`` (1 cm) past the grasp along its approach:
+   ``T_world_hand = T_obj_grasp · Trans(depth − tcp_offset, 0, 0)``; the jaws start at the executor's opening
+   ``GRIPPER.opening(width)``;
 2. a grasp whose open gripper already overlaps the object by more than ``max_start_penetration`` fails: the
    arm reaches a grasp from its pre-grasp, so no real gripper gets there (and MuJoCo would push the overlap
    apart into a wedge that holds);

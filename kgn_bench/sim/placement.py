@@ -26,12 +26,13 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from kgn_bench import giga
 from kgn_bench.geometry import frame_from_xz, make_pose, rot_z
 from kgn_bench.sim.scene import GROUP_VISUAL, TABLE_HALF_SIZE, TIMESTEP, PhysicsError, Scene
 
 __all__ = ["PILE_BOX", "PileConfig", "PlacementConfig", "SettleStats", "add_pile_box", "initial_pose", "off_table",
-           "pack_objects", "pile_objects", "place_objects", "rectify_axisymmetric", "settle", "settle_to_rest",
-           "upright_rotation"]
+           "pack_objects", "pile_objects", "place_objects", "rectify_axisymmetric", "retire_outside_workspace",
+           "settle", "settle_to_rest", "upright_rotation"]
 
 PILE_BOX = "pile_box"
 """Name of the mocap body holding the pile box's walls."""
@@ -312,3 +313,15 @@ def rectify_axisymmetric(scene: Scene, max_axis_z: float = 0.9) -> None:
         R = frame_from_xz(x, axis)
         scene.set_object_pose(i, make_pose(R, T[:3, 3]))
     scene.forward()
+
+
+def retire_outside_workspace(scene: Scene) -> list[int]:
+    """Take every object whose origin has left GIGA's workspace cube (``giga.in_workspace``) out of the scene
+    (``Scene.retire_object``), as GIGA deletes them; returns their indices. Objects already retired are left
+    alone."""
+    out = []
+    for i in range(len(scene.objects)):
+        if i not in scene.retired and not giga.in_workspace(scene.object_pose(i)[:3, 3]):
+            scene.retire_object(i)
+            out.append(i)
+    return out
