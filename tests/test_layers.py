@@ -22,7 +22,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "kgn_bench"
 LAYERS: tuple[tuple[str, ...], ...] = (
     # 0 foundation (numpy only)
     ("kgn_bench", "errors", "io", "geometry", "grasp", "gripper", "resources", "environment", "kernels", "lifecycle",
-     "threads", "progress", "pool", "cluster", "camera", "execution", "tsdf", "protocols"),
+     "threads", "progress", "pool", "cluster", "camera", "execution", "tsdf", "protocols", "giga"),
     ("types",),
     ("shapes",),
     ("config",),

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from kgn_bench.shapes import PRIMITIVES
-from kgn_bench.sim.placement import place_objects, rectify_axisymmetric, settle
+from kgn_bench.sim.placement import PlacementConfig, place_objects, rectify_axisymmetric, settle
 from kgn_bench.sim.scene import Scene, SceneObject
 
 
@@ -111,3 +111,95 @@ def test_a_pile_stays_where_it_came_to_rest(seed):
     moved = np.linalg.norm(scene.object_poses()[:, :3, 3] - start, axis=1)
     moved[off_table(scene)] = 0.0
     assert moved.max() < 0.003
+
+
+def _giga_round(arrangement, seed, count=5):
+    """A GIGA round of primitives: names and sizes drawn as GIGA does, the scene built with GIGA's pile box."""
+    from kgn_bench.shapes import giga_objects
+    from kgn_bench.shapes.scaled import giga_names
+    from kgn_bench.sim.placement import GIGA_PILE, add_pile_box
+
+    rng = np.random.default_rng(seed)
+    shapes = giga_objects(giga_names(list(PRIMITIVES), arrangement, rng, count), arrangement, rng)
+    scene = Scene([SceneObject(s, (0.5, 0.5, 0.5)) for s in shapes], extend=lambda root: add_pile_box(root, GIGA_PILE))
+    return scene, rng
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_giga_pile_ends_inside_the_workspace_and_at_rest(seed):
+    import mujoco
+
+    from kgn_bench.giga import in_workspace
+    from kgn_bench.sim.placement import PILE_BOX, giga_pile
+    from kgn_bench.sim.scene import TIMESTEP
+
+    scene, rng = _giga_round("pile", seed)
+    play = giga_pile(scene, rng)
+    assert len(play) >= 3 and set(play) | set(scene.retired) == set(range(5))
+    assert not set(play) & set(scene.retired)
+    poses = scene.object_poses()
+    assert np.all(in_workspace(poses[play, :3, 3]))
+    assert poses[play, 2, 3].max() > 0.03  # a pile: something lies on something
+    box = scene.model.body_mocapid[mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, PILE_BOX)]
+    assert scene.data.mocap_pos[box][2] > 10.0  # lifted away
+    scene.step(int(0.5 / TIMESTEP))  # at rest: half a second more moves nothing in play
+    assert np.linalg.norm(scene.object_poses()[play, :3, 3] - poses[play, :3, 3], axis=1).max() < 0.003
+    again, rng = _giga_round("pile", seed)
+    assert giga_pile(again, rng) == play
+    np.testing.assert_array_equal(again.object_poses()[play], poses[play])
+
+
+def test_giga_pile_needs_the_workspace_sized_box():
+    from kgn_bench.sim.placement import add_pile_box, giga_pile
+
+    scene = Scene([SceneObject(PRIMITIVES["sphere"](0.03), (0.5, 0.5, 0.5))], extend=add_pile_box)
+    with pytest.raises(ValueError, match="GIGA_PILE"):
+        giga_pile(scene, np.random.default_rng(0))
+
+
+def test_objects_leaving_the_workspace_are_retired():
+    from kgn_bench.geometry import make_pose
+    from kgn_bench.sim.placement import _settle_and_cull
+
+    cube = PRIMITIVES["cuboid"]((0.04, 0.04, 0.04))
+    scene = Scene([SceneObject(cube, (0.5, 0.5, 0.5)) for _ in range(3)])
+    for i, x in enumerate((0.0, 0.1, 0.2)):  # the cube's side is at x = 0.15: the third rests on the table outside
+        scene.set_object_pose(i, make_pose(t=np.array([x, 0.0, 0.021])))
+    assert _settle_and_cull(scene, [0, 1, 2], PlacementConfig()) == [0, 1]
+    assert set(scene.retired) == {2} and scene.object_pose(2)[2, 3] < -1.0
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_giga_packed_stands_at_most_five_upright_none_touching_when_placed(seed, monkeypatch):
+    from kgn_bench.giga import PACKED_HALF, PACKED_TRIES, in_workspace
+    from kgn_bench.sim import placement
+
+    placed = {}  # object -> (touches an earlier one, its z axis) when it was placed, before it settled
+    real = placement.settle_to_rest
+
+    def spy(scene, config):
+        on_table = [i for i in range(len(scene.objects)) if abs(scene.object_pose(i)[0, 3]) < 1]  # not parked
+        standing = [i for i in on_table if i not in scene.retired]
+        newest = max(standing)
+        if newest not in placed:
+            placed[newest] = (scene.object_contacts(newest, np.array(standing[:-1], dtype=int)),
+                              scene.object_pose(newest)[:3, 2].copy())
+        return real(scene, config)
+
+    monkeypatch.setattr(placement, "settle_to_rest", spy)
+    scene, rng = _giga_round("packed", seed)
+    assert len(scene.objects) == PACKED_TRIES
+    play = placement.giga_pack(scene, rng)
+    assert 1 <= len(play) <= 5 and set(play) <= set(placed)
+    assert set(play) | set(scene.retired) == set(range(PACKED_TRIES)) and not set(play) & set(scene.retired)
+    rejected = set(range(max(placed))) - set(placed)  # tried before the last one placed, but never settled
+    assert rejected and rejected <= set(scene.retired)  # some touched one standing and were taken away
+    for i, (touched, z_axis) in placed.items():
+        assert not touched, i
+        np.testing.assert_allclose(z_axis, [0.0, 0.0, 1.0], atol=1e-12)  # upright as modelled, turned about z
+    poses = scene.object_poses()
+    for i in play:
+        xy0 = poses[i, :2, 3]
+        assert np.all(np.abs(xy0) < PACKED_HALF + 0.02)
+        assert poses[i, 2, 2] > 0.95, scene.objects[i].shape.name  # still standing once settled
+    assert np.all(in_workspace(poses[play, :3, 3]))

@@ -155,3 +155,21 @@ def test_geom_containment_for_every_kind():
     np.testing.assert_array_equal(mesh.contains(np.array([[0.1, 0.1, 0.1], [0.5, 0.5, 0.5]])), [True, False])
     with pytest.raises(ValueError, match="plane"):
         GeomSpec("plane").contains(np.zeros((1, 3)))
+
+
+def test_giga_objects_are_scaled_in_their_arrangement_range():
+    from kgn_bench.giga import MAX_EXTENT, PACKED_SCALE, PILE_SCALE
+    from kgn_bench.shapes import giga_objects
+    from kgn_bench.shapes.scaled import oriented_extents
+
+    for arrangement, (lo, hi) in (("pile", PILE_SCALE), ("packed", PACKED_SCALE)):
+        shapes = giga_objects(list(PRIMITIVES) * 2, arrangement, np.random.default_rng(5))
+        assert shapes == giga_objects(list(PRIMITIVES) * 2, arrangement, np.random.default_rng(5))
+        assert [s.name for s in shapes] == list(PRIMITIVES) * 2
+        for shape in shapes:
+            assert oriented_extents(shape)[1] <= hi * MAX_EXTENT + 1e-9
+            factor = shape.scale / min(1.0, MAX_EXTENT / oriented_extents(shape.inner)[1])
+            assert lo <= factor <= hi
+            assert shape_from_dims(shape.name, shape.dims()) == shape
+    with pytest.raises(ValueError, match="arrangement"):
+        giga_objects(["cuboid"], "spread", np.random.default_rng(0))

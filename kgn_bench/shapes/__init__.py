@@ -5,15 +5,23 @@ geoms and grasp families.
 holds the closed-loop objects that never appear in training data; ``OBJECTS`` is both. Any other name is an
 imported object (``shapes.library``: a folder with a mesh, its collision hulls and verified grasps).
 ``sample_shape``/``shape_from_dims`` build a shape of any of them by name; ``is_known`` tells a name exists.
+``ScaledShape`` (``shapes.scaled``) is any of them scaled uniformly; it keeps the name, and its dims are the inner
+shape's plus a ``"scale"`` key, which ``shape_from_dims`` reads. ``giga_objects`` draws the objects of a GIGA
+round by name, at GIGA's sizes.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
 
 from kgn_bench.shapes.base import EVAL_DENSITY, TRAIN_DENSITY, GeomSpec, GraspDensity, RestPose, Shape
 from kgn_bench.shapes.household import HOUSEHOLD_CLASSES
 from kgn_bench.shapes.library import find_object, list_objects, load_object
 from kgn_bench.shapes.mesh_object import MeshObject, ObjectError
 from kgn_bench.shapes.primitives import Cuboid, Cylinder, Ring, SemiSphere, Sphere, Stick
+from kgn_bench.shapes.scaled import SCALE_KEY, ScaledShape, giga_scale_range, giga_sized
 
 __all__ = [
     "EVAL_DENSITY",
@@ -26,7 +34,9 @@ __all__ = [
     "MeshObject",
     "ObjectError",
     "RestPose",
+    "ScaledShape",
     "Shape",
+    "giga_objects",
     "is_known",
     "known_names",
     "sample_shape",
@@ -73,7 +83,10 @@ def sample_shape(name: str, rng) -> Shape:
 
 
 def shape_from_dims(name: str, dims: dict) -> Shape:
-    """Rebuild a shape from its stored type name and dimensions (an imported object from its folder)."""
+    """Rebuild a shape from its stored type name and dimensions (an imported object from its folder); dims with a
+    ``"scale"`` key (``ScaledShape.dims``) give the shape of the other dims, scaled by it."""
+    if isinstance(dims, dict) and SCALE_KEY in dims:
+        return ScaledShape(shape_from_dims(name, {k: v for k, v in dims.items() if k != SCALE_KEY}), dims[SCALE_KEY])
     if name in OBJECTS:
         return OBJECTS[name].from_dims(dims)
     if find_object(name) is None:
@@ -83,3 +96,16 @@ def shape_from_dims(name: str, dims: dict) -> Shape:
         return load_object(name)
     except ObjectError as e:
         raise ValueError(str(e)) from None
+
+
+def giga_objects(names: Sequence[str], arrangement: str, rng: np.random.Generator) -> list[ScaledShape]:
+    """One shape per name, in order, at GIGA's size for ``arrangement`` ("pile" or "packed"; ``shapes.scaled``):
+    the shape (``sample_shape``: a primitive's sizes drawn from ``rng``, an imported object as it is), then
+    ``giga_sized`` with a factor ~U(``giga.PILE_SCALE``) or ~U(``giga.PACKED_SCALE``) drawn from ``rng``. Call it
+    before the scene is built, which compiles the sizes; ``shapes.scaled.giga_names`` draws the names."""
+    lo, hi = giga_scale_range(arrangement)
+    out = []
+    for name in names:
+        shape = sample_shape(name, rng)
+        out.append(giga_sized(shape, float(rng.uniform(lo, hi))))
+    return out

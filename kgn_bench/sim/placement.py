@@ -1,6 +1,6 @@
 """Random object placement on the table and physical settling in MuJoCo.
 
-Three arrangements, all world frame (table top z = 0, table centre at the origin):
+Five arrangements, all world frame (table top z = 0, table centre at the origin):
 
 * ``place_objects`` (the reference's, used by the data and the ``single_object`` / ``multi_object`` tasks):
   each object gets a resting orientation drawn from its shape's ``rest_poses`` (by probability), a yaw
@@ -14,6 +14,11 @@ Three arrangements, all world frame (table top z = 0, table centre at the origin
 * ``pack_objects`` (VGN/GIGA's packed): every object stands upright (``upright_rotation``) with a random
   yaw at ``xy ~ U[−h, h]²``, redrawn while it would interpenetrate one already placed; ``h`` grows by 10 %
   after every ``tries_per_object`` failed draws, so ten objects still fit. Then gravity settles them.
+
+* ``giga_pile`` and ``giga_pack``: GIGA's own pile and packed rounds, number for number (``kgn_bench.giga``; the
+  objects' sizes are drawn before the scene is built, ``shapes.giga_objects``). Objects whose origin
+  leaves GIGA's workspace cube are retired (``Scene.retire_object``), as GIGA deletes them; both return the
+  objects still in play.
 
 The box is a mocap body of the scene (``add_pile_box``), parked far above the work cell when not in use.
 """
@@ -30,9 +35,9 @@ from kgn_bench import giga
 from kgn_bench.geometry import frame_from_xz, make_pose, rot_z
 from kgn_bench.sim.scene import GROUP_VISUAL, TABLE_HALF_SIZE, TIMESTEP, PhysicsError, Scene
 
-__all__ = ["PILE_BOX", "PileConfig", "PlacementConfig", "SettleStats", "add_pile_box", "initial_pose", "off_table",
-           "pack_objects", "pile_objects", "place_objects", "rectify_axisymmetric", "retire_outside_workspace",
-           "settle", "settle_to_rest", "upright_rotation"]
+__all__ = ["GIGA_PILE", "PILE_BOX", "PileConfig", "PlacementConfig", "SettleStats", "add_pile_box", "giga_pack",
+           "giga_pile", "initial_pose", "off_table", "pack_objects", "pile_objects", "place_objects",
+           "rectify_axisymmetric", "retire_outside_workspace", "settle", "settle_to_rest", "upright_rotation"]
 
 PILE_BOX = "pile_box"
 """Name of the mocap body holding the pile box's walls."""
@@ -78,6 +83,17 @@ class PileConfig:
     tries_per_object: int = 100
 
 
+GIGA_PILE = PileConfig(box_half=giga.WORKSPACE_SIZE / 2.0, drop_half=giga.PILE_DROP_HALF, packed_half=giga.PACKED_HALF)
+"""GIGA's numbers (``kgn_bench.giga``) for ``giga_pile`` and ``giga_pack``: the drop square's half side (5 cm),
+the packed square's (7 cm, never widened), each drop's time to come to rest (``drop_settle`` = 1 s, GIGA's
+timeout) and the pile box, whose inner walls stand on the workspace cube's sides (x, y = ±0.15 m). Its walls are
+``box_height`` = 16 cm high, below the 20 cm drop height: an object dropped at ``|x|, |y| ≤ 5 cm`` has its origin
+≥ 10 cm from every wall and 4 cm above its top, so it starts clear of the walls unless part of it lies ≥ 10.8 cm
+from its origin; five objects at most 7 cm thick (``giga.MAX_EXTENT``) pile well below the top, and an object
+that bounces off the pile meets a wall rather than leaving the cube. Build the scene with
+``add_pile_box(root, GIGA_PILE)``."""
+
+
 def add_pile_box(root, config: PileConfig = PileConfig()) -> None:
     """Add the pile box (four walls on a mocap body, parked out of the way) to a scene's MJCF ``root``."""
     box = root.worldbody.add("body", name=PILE_BOX, mocap=True, pos=_BOX_PARK)
@@ -102,6 +118,13 @@ def _top_of(scene: Scene, objects: np.ndarray) -> float:
         return 0.0
     geoms = np.flatnonzero(np.isin(scene.geom_label, objects + 1))
     return float(np.max(scene.data.geom_xpos[geoms, 2] + scene.model.geom_rbound[geoms]))
+
+
+def _park(scene: Scene, objects: range | list[int]) -> None:
+    """Put ``objects`` out of the way, object ``i`` at world (10 + 2i, 10, 1) m, upright and still (they fall
+    freely from there while physics runs, off the table and ignored by the settle, until they are placed)."""
+    for i in objects:
+        scene.set_object_pose(i, make_pose(t=np.array([10.0 + 2.0 * i, 10.0, 1.0])))
 
 
 def upright_rotation(shape) -> np.ndarray:
@@ -151,8 +174,7 @@ def pile_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = Pi
                  placement: PlacementConfig = PlacementConfig()) -> None:
     """Drop the objects one by one into the pile box, then lift the box away and let the pile settle."""
     n = len(scene.objects)
-    for i in range(n):
-        scene.set_object_pose(i, make_pose(t=np.array([10.0 + 2.0 * i, 10.0, 1.0])))
+    _park(scene, range(n))
     _move_box(scene, np.zeros(3))
     for i in range(n):
         R = Rotation.random(random_state=rng).as_matrix()
@@ -169,8 +191,7 @@ def pack_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = Pi
                  placement: PlacementConfig = PlacementConfig()) -> None:
     """Stand the objects upright, tightly, in the packed square; ``PhysicsError`` if one finds no spot."""
     n = len(scene.objects)
-    for i in range(n):
-        scene.set_object_pose(i, make_pose(t=np.array([10.0 + 2.0 * i, 10.0, 1.0])))
+    _park(scene, range(n))
     for i in range(n):
         shape = scene.objects[i].shape
         upright = upright_rotation(shape)
@@ -186,6 +207,94 @@ def pack_objects(scene: Scene, rng: np.random.Generator, config: PileConfig = Pi
             raise PhysicsError(f"no free spot for object {i} ({shape.name}) in the packed square")
     scene.forward()
     settle_to_rest(scene, placement)
+
+
+def _settle_and_cull(scene: Scene, objects: list[int], placement: PlacementConfig) -> list[int]:
+    """GIGA's "wait for rest, delete the objects outside the workspace, until none is deleted": ``settle_to_rest``,
+    then retire every one of ``objects`` whose origin (world frame) left the workspace cube (``giga.in_workspace``),
+    again while any was retired. Returns the ones left."""
+    while True:
+        settle_to_rest(scene, placement)
+        if not retire_outside_workspace(scene, objects):
+            return [i for i in objects if i not in scene.retired]
+
+
+def _pile_box_half(scene: Scene) -> float:
+    """Inner half size (m) of the scene's pile box, read from its first wall (``add_pile_box``)."""
+    g = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, "pile_wall0")
+    if g < 0:
+        raise ValueError("the scene has no pile box: build it with add_pile_box(root, GIGA_PILE)")
+    return float(scene.model.geom_pos[g, 0] - scene.model.geom_size[g, 0])
+
+
+def giga_pile(scene: Scene, rng: np.random.Generator, placement: PlacementConfig = PlacementConfig()) -> list[int]:
+    """GIGA's pile of all the scene's objects; returns the objects in play (the others are retired).
+
+    World frame (table top z = 0, the workspace cube's centre line is the z axis). The pile box (``GIGA_PILE``,
+    ``ValueError`` for another box) stands on the table around the cube. Each object in turn, in index order: a
+    uniformly random rotation ``R`` (Haar measure on SO(3)), its origin at ``(x, y, PILE_DROP_HEIGHT)`` = (x, y,
+    0.2 m) with ``x, y ~ U(−PILE_DROP_HALF, PILE_DROP_HALF)`` = U(−5, 5) cm (``kgn_bench.giga``), then
+    ``GIGA_PILE.drop_settle`` = 1 s at most to come to rest (``settle``). Where the pile already reaches the drop
+    point (GIGA does not look), the object starts 1 cm higher at a time until it touches no earlier object. Then
+    the box is lifted away, and ``settle_to_rest``, retiring every object whose origin left the workspace cube
+    (``giga.in_workspace``), is repeated until none is retired. The objects' sizes are the scene's
+    (``shapes.giga_objects``: GIGA draws each scale at the drop, from U(0.8, 1.0)); the draws are made in
+    another order than GIGA's."""
+    if abs(_pile_box_half(scene) - GIGA_PILE.box_half) > 1e-9:
+        raise ValueError(f"giga_pile needs GIGA's pile box (inner half size {GIGA_PILE.box_half} m), the scene's is "
+                         f"{_pile_box_half(scene):.3f} m: build it with add_pile_box(root, GIGA_PILE)")
+    n = len(scene.objects)
+    _park(scene, range(n))
+    _move_box(scene, np.zeros(3))
+    drop = replace(placement, settle_time_max=GIGA_PILE.drop_settle)
+    for i in range(n):
+        R = Rotation.random(random_state=rng).as_matrix()
+        xy = rng.uniform(-GIGA_PILE.drop_half, GIGA_PILE.drop_half, size=2)
+        pose = make_pose(R, np.array([xy[0], xy[1], giga.PILE_DROP_HEIGHT]))
+        scene.set_object_pose(i, pose)
+        while scene.object_contacts(i, np.arange(i)) and pose[2, 3] < 1.0:
+            pose[2, 3] += 0.01
+            scene.set_object_pose(i, pose)
+        scene.forward()
+        settle(scene, drop, strict=False)
+    _move_box(scene, _BOX_PARK)
+    return _settle_and_cull(scene, list(range(n)), placement)
+
+
+def giga_pack(scene: Scene, rng: np.random.Generator, count: int = giga.OBJECTS_PER_ROUND,
+              placement: PlacementConfig = PlacementConfig()) -> list[int]:
+    """GIGA's packed round: the scene's objects are the candidates, tried in index order (``shapes.scaled.giga_names``
+    draws ``PACKED_TRIES`` of them) while fewer than ``count`` objects stand and fewer than ``PACKED_TRIES`` were
+    tried. Returns the objects in play; every other object is retired (``Scene.retire_object``).
+
+    World frame (table top z = 0, the workspace cube's centre line is the z axis). A candidate stands in its
+    canonical orientation turned about the world z axis, ``R = R_z(ψ)`` with ``ψ ~ U(0, 2π)`` (every shape is
+    modelled standing on its base with +z up), its origin at ``x, y ~ U(−PACKED_HALF, PACKED_HALF)`` =
+    U(−7, 7) cm and at the height that puts its lowest point ``placement.drop_height`` = 2 mm above the table
+    (``z = 0.002 − lowest_point(R)``). If it then touches an object already standing, it is taken away (retired)
+    and does not count; otherwise ``settle_to_rest``, retiring every standing object whose origin left the
+    workspace cube (``giga.in_workspace``), is repeated until none is retired. The objects' sizes are the scene's
+    (``shapes.giga_objects``: GIGA draws each scale, from U(0.7, 0.9), at the try); the draws are made in
+    another order than GIGA's."""
+    n = len(scene.objects)
+    _park(scene, range(n))
+    standing: list[int] = []
+    tried = 0
+    while len(standing) < count and tried < min(n, giga.PACKED_TRIES):
+        i, tried = tried, tried + 1
+        R = rot_z(rng.uniform(0.0, 2.0 * np.pi))
+        xy = rng.uniform(-GIGA_PILE.packed_half, GIGA_PILE.packed_half, size=2)
+        z = placement.drop_height - scene.objects[i].shape.lowest_point(R)
+        scene.set_object_pose(i, make_pose(R, np.array([xy[0], xy[1], z])))
+        if scene.object_contacts(i, np.asarray(standing, dtype=int)):
+            scene.retire_object(i)
+            continue
+        _park(scene, range(tried, n))  # the candidates still waiting start their fall again
+        scene.forward()
+        standing = _settle_and_cull(scene, [*standing, i], placement)
+    for i in range(tried, n):
+        scene.retire_object(i)
+    return standing
 
 
 @dataclass
@@ -216,8 +325,7 @@ def place_objects(scene: Scene, rng: np.random.Generator, config: PlacementConfi
     free spot within ``tries_per_object`` draws.
     """
     n = len(scene.objects)
-    for i in range(n):
-        scene.set_object_pose(i, make_pose(t=np.array([10.0 + 2.0 * i, 10.0, 1.0])))
+    _park(scene, range(n))
     for i in range(n):
         for attempt in range(config.tries_per_object):
             sigma = config.xy_sigma * (1.0 + 0.1 * attempt)
@@ -315,13 +423,12 @@ def rectify_axisymmetric(scene: Scene, max_axis_z: float = 0.9) -> None:
     scene.forward()
 
 
-def retire_outside_workspace(scene: Scene) -> list[int]:
-    """Take every object whose origin has left GIGA's workspace cube (``giga.in_workspace``) out of the scene
-    (``Scene.retire_object``), as GIGA deletes them; returns their indices. Objects already retired are left
-    alone."""
-    out = []
-    for i in range(len(scene.objects)):
-        if i not in scene.retired and not giga.in_workspace(scene.object_pose(i)[:3, 3]):
-            scene.retire_object(i)
-            out.append(i)
+def retire_outside_workspace(scene: Scene, objects: list[int] | None = None) -> list[int]:
+    """Take every one of ``objects`` (default: every object not retired yet) whose origin has left GIGA's
+    workspace cube (``giga.in_workspace``) out of the scene (``Scene.retire_object``), as GIGA deletes them;
+    returns their indices."""
+    candidates = range(len(scene.objects)) if objects is None else objects
+    out = [i for i in candidates if i not in scene.retired and not giga.in_workspace(scene.object_pose(i)[:3, 3])]
+    for i in out:
+        scene.retire_object(i)
     return out
