@@ -34,13 +34,18 @@ from kgn_bench.camera import orbit_pose
 from kgn_bench.config import TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.geometry import quat_wxyz_from_matrix
-from kgn_bench.shapes import sample_shape
+from kgn_bench.shapes import giga_objects, sample_shape
+from kgn_bench.shapes.scaled import giga_names
 from kgn_bench.sim.control import IK, Executor
 from kgn_bench.sim.depth_noise import DepthNoise, DexNoise, noise_model
 from kgn_bench.sim.floating_hand import FloatingHand, add_floating_cell
 from kgn_bench.sim.placement import (
+    GIGA_PILE,
+    PileConfig,
     PlacementConfig,
     add_pile_box,
+    giga_pack,
+    giga_pile,
     pack_objects,
     pile_objects,
     place_objects,
@@ -104,7 +109,13 @@ def check_cameras(task: TaskConfig, ik: IK | None = None) -> int:
 
 def trial_objects(task: TaskConfig, index: int, rng: np.random.Generator) -> list[SceneObject]:
     """The objects of trial ``index``: for a one-object protocol the set's ``index // trials``-th object;
-    for the others ``objects_per_scene`` names drawn without replacement while the set allows."""
+    for GIGA's rounds their draw with replacement, at their sizes (``shapes.scaled.giga_names``,
+    ``shapes.giga_objects``: a packed round's 12 candidates); for the others ``objects_per_scene`` names drawn
+    without replacement while the set allows."""
+    if task.spec.giga:
+        arrangement = GIGA_ARRANGEMENT[task.spec.arrangement]
+        shapes = giga_objects(giga_names(task.objects, arrangement, rng, task.objects_per_scene), arrangement, rng)
+        return [SceneObject(shape, tuple(float(c) for c in rng.uniform(0.1, 0.9, 3))) for shape in shapes]
     if task.spec.one_object:
         names = [task.objects[index // task.trials]]
     else:
@@ -134,9 +145,25 @@ def _spread(scene: Scene, rng: np.random.Generator) -> None:
     settle(scene, PlacementConfig())
 
 
-ARRANGEMENTS: dict[str, Callable[[Scene, np.random.Generator], None]] = {
-    "spread": _spread, "pile": pile_objects, "packed": pack_objects}
-"""How a protocol puts its objects on the table (``Protocol.arrangement``), from the trial's generator."""
+def _giga_pile(scene: Scene, rng: np.random.Generator) -> None:
+    """GIGA's pile (``sim.placement.giga_pile``): every object dropped is one of the round's, also one that
+    then left the workspace (it fell at set-up)."""
+    giga_pile(scene, rng)
+
+
+def _giga_pack(scene: Scene, rng: np.random.Generator) -> list[int]:
+    """GIGA's packed round (``sim.placement.giga_pack``): only the candidates that stood are the round's."""
+    return giga_pack(scene, rng)
+
+
+ARRANGEMENTS: dict[str, Callable[[Scene, np.random.Generator], list[int] | None]] = {
+    "spread": _spread, "pile": pile_objects, "packed": pack_objects, "giga_pile": _giga_pile,
+    "giga_packed": _giga_pack}
+"""How a protocol puts its objects on the table (``Protocol.arrangement``), from the trial's generator; an
+arrangement that tries more objects than it keeps returns the indices of the round's objects (None: all)."""
+
+GIGA_ARRANGEMENT = {"giga_pile": "pile", "giga_packed": "packed"}
+"""The GIGA arrangement (``shapes.scaled.GIGA_ARRANGEMENTS``) of each GIGA protocol's arrangement."""
 
 
 Hand = Executor | FloatingHand
@@ -152,7 +179,7 @@ def _workcell(task: TaskConfig) -> Callable[..., None]:
         else:
             add_workcell(root)
         if task.spec.pile_box:
-            add_pile_box(root)
+            add_pile_box(root, GIGA_PILE if task.spec.giga else PileConfig())
 
     return extend
 
@@ -174,20 +201,21 @@ def _ik(hand: Hand) -> IK | None:
     return hand.ik if isinstance(hand, Executor) else None
 
 
-def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Hand]:
-    """The trial's work cell with its objects placed and settled, the hand parked (retried on a blow-up)."""
+def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Hand, list[int]]:
+    """The trial's work cell with its objects placed and settled, the hand parked (retried on a blow-up), and
+    the indices of the round's objects (``ARRANGEMENTS``)."""
     rng = np.random.default_rng([task.seed, index])
     arrange = ARRANGEMENTS[task.spec.arrangement]
     for attempt in range(SCENE_TRIES):
         scene = Scene(trial_objects(task, index, rng), task.camera.pinhole, extend=_workcell(task))
         executor = _hand(task, scene, ik)
         try:
-            arrange(scene, rng)
+            members = arrange(scene, rng)
         except PhysicsError:
             if attempt == SCENE_TRIES - 1:
                 raise
             continue
-        return scene, executor
+        return scene, executor, list(range(len(scene.objects))) if members is None else members
     raise PhysicsError(f"trial {index}: no stable scene")
 
 
@@ -240,15 +268,16 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
     clock = _Clock()
     t = time.perf_counter()
     try:
-        scene, executor = _build_scene(task, index, ik)
+        scene, executor, members = _build_scene(task, index, ik)
     except PhysicsError as e:
         names = [o.shape.name for o in trial_objects(task, index, np.random.default_rng([task.seed, index]))]
         clock.add("setup", t)
         return _fault_record(task, index, "physics_error", f"no stable scene: {e}", clock, names, names)
     recording = _open_recording(record, task, index, scene, executor)
-    names = [o.shape.name for o in scene.objects]
-    placed = [i for i in range(len(names)) if on_table(scene, i)]
-    placed_names = [names[i] for i in placed]
+    every = [o.shape.name for o in scene.objects]
+    names = [every[i] for i in members]
+    placed = [i for i in members if on_table(scene, i)]
+    placed_names = [every[i] for i in placed]
     try:
         _prepare_detector(detector, task, index, scene)
     except Exception as e:  # a detector bug must not stop the run: record it
@@ -256,7 +285,7 @@ def run_trial(task: TaskConfig, index: int, detector: Detector, ik: IK, record: 
         clock.add("setup", t)
         return _fault_record(task, index, "detector_error", f"reset: {_error_line(e)}", clock, names, placed_names)
     clock.add("setup", t)
-    attempts, _ = _episode(task, index, scene, executor, detector, clock, names, recording)
+    attempts, _ = _episode(task, index, scene, executor, detector, clock, every, recording)
     recording.close()
     removed = int(sum(a.success for a in attempts))
     left = sum(on_table(scene, i) for i in placed)
@@ -360,7 +389,7 @@ def capture(task: TaskConfig, index: int, detector: Detector, ik: IK, attempt: i
     so a deterministic detector gives the recorded selection. None when the trial ends before that attempt. A
     scene that cannot be built raises ``PhysicsError``; a detector that fails, ``DetectorError`` or its own
     exception."""
-    scene, executor = _build_scene(task, index, ik)
+    scene, executor, _ = _build_scene(task, index, ik)
     _prepare_detector(detector, task, index, scene)
     names = [o.shape.name for o in scene.objects]
     earlier, cap = _episode(task, index, scene, executor, detector, _Clock(), names,
