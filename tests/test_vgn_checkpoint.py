@@ -10,6 +10,7 @@ from kgn_bench.model.vgn_checkpoint import (
     load_vgn_checkpoint,
     load_vgn_model,
     save_vgn_checkpoint,
+    vgn_model_card,
     vgn_payload,
 )
 from kgn_bench.model.vgn_network import VGNNet
@@ -75,3 +76,8 @@ def test_other_versions_and_grids_are_refused(tmp_path):
                                                                        "truncation_voxels": 4}})
     with pytest.raises(CheckpointError, match="divisible by 8"):
         load_vgn_model(path)
+
+
+def test_a_card_without_held_out_metrics():
+    card = vgn_model_card({"history": [{"epoch": 1, "loss": 0.5, "held_out_loss": None, "accuracy": None}]}, "x", 1000)
+    assert "held-out n/a" in card and "accuracy n/a" in card and "1: 0.500 / n/a" in card

@@ -2,6 +2,7 @@
 global balance, the gathered loss, and a tiny run that trains, resumes and refuses another dataset."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -234,6 +235,11 @@ def test_trains_resumes_and_refuses_another_dataset(tmp_path):
         train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "data": str(other), "epochs": 4}), run, device="cpu")
     with pytest.raises(CheckpointError, match="other settings"):
         train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "lr": 1e-3, "epochs": 4}), run, device="cpu")
+
+    moved = tmp_path / "moved"
+    shutil.copytree(data, moved)  # the same dataset in another folder resumes
+    train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "data": str(moved), "epochs": 4}), run, device="cpu")
+    assert [r["epoch"] for r in _history(run)] == [1, 2, 3, 4]
 
     weights, card = export_vgn(run, "vgn_tiny", tmp_path / "ship")
     assert load_vgn_model(weights).grid == GRID and "| sha256 |" in card.read_text()

@@ -144,18 +144,21 @@ def vgn_model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str
         f"| git commit | `{data.get('git_commit', '?')}` |",
     ]
     if last:
-        lines.append(f"| final loss (epoch {last.get('epoch')}) | train {last.get('loss', float('nan')):.4f}, "
-                     f"held-out {last.get('held_out_loss', float('nan')):.4f} |")
+        lines.append(f"| final loss (epoch {last.get('epoch')}) | train {_num(last.get('loss'))}, "
+                     f"held-out {_num(last.get('held_out_loss'))} |")
         lines.append(f"| held-out (epoch {last.get('epoch')}) | accuracy {_pct(last.get('accuracy'))}, precision "
                      f"{_pct(last.get('precision'))}, recall {_pct(last.get('recall'))} |")
     lines += ["", "Training curve (epoch: train loss / held-out accuracy): "
-              + ", ".join(f"{h['epoch']}: {h.get('loss', float('nan')):.3f} / {_pct(h.get('accuracy'))}"
-                          for h in history)]
+              + ", ".join(f"{h.get('epoch')}: {_num(h.get('loss'), 3)} / {_pct(h.get('accuracy'))}" for h in history)]
     return "\n".join(lines) + "\n"
 
 
 def _pct(x: float | None) -> str:
     return "n/a" if x is None else f"{100 * x:.1f} %"
+
+
+def _num(x: float | None, digits: int = 4) -> str:
+    return "n/a" if x is None else f"{x:.{digits}f}"
 
 
 def export_vgn_weights(src: Path, name: str, out_dir: Path) -> tuple[Path, Path]:

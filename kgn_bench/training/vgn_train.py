@@ -34,7 +34,8 @@ written atomically after every epoch), ``history.jsonl`` (one row per epoch: mea
 terms, held-out loss, accuracy, precision and recall of ``round(quality)`` against the labels at the
 held-out scenes' labelled voxels, seconds; rewritten whole every epoch) and ``final.pt`` (weights only) at the
 end. Calling ``train_vgn`` again resumes after the last completed epoch (raise ``epochs`` to train on); a
-checkpoint of another dataset (manifest SHA-256) or of other settings (anything but ``epochs``) is refused.
+checkpoint of another dataset (manifest SHA-256) or of other settings (anything but ``epochs``, ``workers`` and
+the dataset folder's path) is refused.
 ``export_vgn`` writes the shipped weights and model card (``assets/weights/vgn.pt``, ``vgn.md``).
 
 A config is a TOML file with one section ``[train]`` whose keys are the fields of ``VGNTrainConfig``.
@@ -349,8 +350,9 @@ def _loader(dataset: VGNSceneDataset, cfg: VGNTrainConfig, device: torch.device,
 
 
 def _comparable(config: dict[str, Any]) -> dict[str, Any]:
-    """The settings a resumed run must share with its checkpoint: all but ``epochs`` and ``workers``."""
-    return {k: v for k, v in config.items() if k not in ("epochs", "workers")}
+    """The settings a resumed run must share with its checkpoint: all but ``epochs``, ``workers`` and ``data``
+    (the dataset is compared by its SHA-256, so a moved dataset folder resumes)."""
+    return {k: v for k, v in config.items() if k not in ("epochs", "workers", "data")}
 
 
 def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device: str | None = None,
@@ -388,8 +390,8 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
             raise CheckpointError(f"{last} was trained on another dataset than {config.data} "
                                   "(use another run folder or delete it)")
         if _comparable(ckpt.get("train", {})) != _comparable(config.to_dict()):
-            raise CheckpointError(f"{last} was written with other settings (only epochs and workers may change "
-                                  "on resume)")
+            raise CheckpointError(f"{last} was written with other settings (only epochs, workers and the dataset's "
+                                  "folder may change on resume)")
         net.load_state_dict(ckpt["model"])
         optim.load_state_dict(ckpt["optimizer"])
         start, history = int(ckpt["epoch"]), list(ckpt.get("history", []))
