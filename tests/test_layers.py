@@ -215,7 +215,8 @@ def test_every_unit_has_a_layer():
 
 
 @pytest.mark.parametrize("module", ["kgn_bench.model.decode", "kgn_bench.training.train", "kgn_bench.data.format",
-                                    "kgn_bench.types", "kgn_bench.camera"])
+                                    "kgn_bench.training.vgn_train", "kgn_bench.data.vgn_format", "kgn_bench.types",
+                                    "kgn_bench.camera"])
 def test_module_loads_no_simulator(module):
     code = (f"import sys, {module}; "
             "print(','.join(m for m in ('mujoco', 'dm_control', 'mink', 'kgn_bench.sim.scene') if m in sys.modules))")

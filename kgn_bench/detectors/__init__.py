@@ -17,8 +17,8 @@ from .base import Candidates, Detector, DetectorError, Observation
 from .oracle import OracleDetector
 from .random import RandomDetector
 
-__all__ = ["DETECTORS", "LEARNED", "Candidates", "Detector", "DetectorError", "Observation", "detector_factory",
-           "make_detector"]
+__all__ = ["DETECTORS", "LEARNED", "WEIGHTED", "Candidates", "Detector", "DetectorError", "Observation",
+           "detector_factory", "make_detector"]
 
 
 def _learned(variant: str) -> Callable[..., Detector]:
@@ -30,14 +30,26 @@ def _learned(variant: str) -> Callable[..., Detector]:
     return make
 
 
+def _vgn(weights=None) -> Detector:
+    """VGN (Breyer et al., CoRL 2020) as GIGA re-trained it for one side view: a 3D CNN on a 40³ TSDF of the
+    workspace cube, VGN's voxel selection with GIGA's settings (``detectors.vgn``)."""
+    from .vgn import VGNDetector  # torch is imported only when the detector is used
+
+    return VGNDetector(weights)
+
+
 LEARNED = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth")
-"""Detectors backed by trained weights (one per model variant)."""
+"""The KGN-family detectors backed by trained weights (one per model variant, ``detectors.kgn``)."""
+
+WEIGHTED = (*LEARNED, "vgn")
+"""Every registered detector that loads trained weights (``make_detector`` passes ``weights`` on to them)."""
 
 DETECTORS: dict[str, Callable[..., Detector]] = {
     "antipodal": AntipodalDetector,
     "oracle": OracleDetector,
     "random": RandomDetector,
     **{v: _learned(v) for v in LEARNED},
+    "vgn": _vgn,
 }
 
 
@@ -69,7 +81,7 @@ def make_detector(name: str, weights=None) -> Detector:
     """The detector ``name`` (see the module docstring); learned ones take ``weights`` (a name under
     assets/weights or a path; default the shipped weights). Raises ``ValueError`` with the reason."""
     factory = detector_factory(name)
-    if name in LEARNED:
+    if name in WEIGHTED:
         return factory(weights)
     if weights is not None:
         raise InputError(f"detector {name!r} takes no weights")

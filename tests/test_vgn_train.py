@@ -1,0 +1,245 @@
+"""VGN training: the config file, the symmetric rotation loss, the augmentation moving labels with the grid, the
+global balance, the gathered loss, and a tiny run that trains, resumes and refuses another dataset."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+from kgn_bench.data.vgn_format import finalize_dataset, read_manifest, write_scene
+from kgn_bench.geometry import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot_x, rot_z
+from kgn_bench.model.checkpoint import CheckpointError
+from kgn_bench.model.vgn_checkpoint import load_vgn_checkpoint, load_vgn_model
+from kgn_bench.model.vgn_network import VGNOutput
+from kgn_bench.training.vgn_train import (
+    VGNSceneDataset,
+    VGNTrainConfig,
+    VGNTrainConfigError,
+    collate_scenes,
+    export_vgn,
+    flip_x,
+    load_vgn_train_config,
+    negatives_per_scene,
+    rotate_scene,
+    rotation_loss,
+    shift_scene,
+    split_scenes,
+    train_vgn,
+    vgn_loss,
+)
+from kgn_bench.tsdf import VoxelGrid
+
+R = 16
+GRID = VoxelGrid(0.12, R, 4.0)
+
+
+def _random_quats(rng, n):
+    q = rng.normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def _dataset(folder, seed=0, scenes=4):
+    """``scenes`` scenes of a 16³ grid: a box on a floor, 12 labelled grasps each (positives on the box)."""
+    rng = np.random.default_rng(seed)
+    for s in range(scenes):
+        tsdf = np.zeros((R, R, R), np.float32)
+        tsdf[:, :, 2:5] = [0.3, 0.5, 0.8]  # the floor's surface band
+        lo = rng.integers(3, 9, 3)
+        tsdf[lo[0]:lo[0] + 4, lo[1]:lo[1] + 4, 5:9] = 0.4  # a box
+        n = 12
+        on_top = np.column_stack([lo[:2] + rng.uniform(0, 3, (5, 2)), np.full(5, 9.0)])  # above the box
+        voxels = np.concatenate([on_top, rng.uniform(0, R - 1, (n - 5, 3))])
+        labels = np.array([1] * 5 + [0] * (n - 5))
+        write_scene(folder, s, tsdf, voxels, _random_quats(rng, n), rng.uniform(2, 8, n), labels)
+    return finalize_dataset(folder, GRID)
+
+
+# -- config -----------------------------------------------------------------------------------------------------
+
+
+def test_config_file(tmp_path):
+    path = tmp_path / "vgn.toml"
+    path.write_text('[train]\ndata = "data/vgn_packed"\nepochs = 12\naugment = false\n')
+    cfg = load_vgn_train_config(path)
+    assert cfg == VGNTrainConfig(data="data/vgn_packed", epochs=12, augment=False)
+    assert (cfg.lr, cfg.batch_size, cfg.held_out, cfg.balance) == (3e-4, 8, 0.1, True)
+    for text, match in (('[train]\ndata = "d"\nepoch = 3\n', "unknown key 'epoch'"),
+                        ('[train]\nepochs = 3\n', "data must name the dataset folder"),
+                        ('[train]\ndata = "d"\nheld_out = 1.5\n', "held_out must lie in"),
+                        ('[train]\ndata = "d"\n[model]\n', "unknown section")):
+        path.write_text(text)
+        with pytest.raises(VGNTrainConfigError, match=match) as e:
+            load_vgn_train_config(path)
+        assert str(path) in str(e.value) and "\n" not in str(e.value)
+
+
+# -- rotation loss --------------------------------------------------------------------------------------------
+
+
+def test_the_rotation_loss_is_zero_for_both_forms_of_a_grasp(rng):
+    q = _random_quats(rng, 50)
+    flipped = np.stack([quat_wxyz_from_matrix(matrix_from_quat_wxyz(a) @ rot_x(np.pi)) for a in q])
+    t = torch.tensor(q, dtype=torch.float64)
+    for pred in (q, flipped, -q, -flipped):
+        torch.testing.assert_close(rotation_loss(torch.tensor(pred), t), torch.zeros(50, dtype=torch.float64))
+    torch.testing.assert_close(flip_x(t), torch.tensor(flipped) * torch.sign(flip_x(t)[:, :1] * torch.tensor(
+        flipped[:, :1])))  # flip_x is q · R_x(π) up to the sign of the quaternion
+    # a quarter turn about the approach axis is a different grasp: 1 − cos(π/4)
+    quarter = np.stack([quat_wxyz_from_matrix(matrix_from_quat_wxyz(a) @ rot_x(np.pi / 2)) for a in q])
+    torch.testing.assert_close(rotation_loss(torch.tensor(quarter), t),
+                               torch.full((50,), 1 - np.cos(np.pi / 4), dtype=torch.float64))
+
+
+# -- augmentation -------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("k", [0, 1, 2, 3])
+def test_rotation_moves_labels_with_the_grid(k, rng):
+    tsdf = np.zeros((R, R, R), np.float32)
+    tsdf[3, 11, 7] = 1.0  # one occupied voxel, a label on it and one 0.4 voxel beside it
+    voxels = np.array([[3.0, 11.0, 7.0], [3.4, 11.0, 7.0]], np.float32)
+    quats = _random_quats(rng, 2).astype(np.float32)
+    out, moved, turned = rotate_scene(tsdf, voxels, quats, k)
+    assert out.shape == tsdf.shape and out.sum() == 1.0
+    np.testing.assert_allclose(moved[0], np.argwhere(out == 1.0)[0], atol=1e-5)
+    # in world terms: the grid and the labels turned by the same R_z(k·90°) about the grid centre
+    centre = np.array([(R - 1) / 2, (R - 1) / 2, 0.0])
+    Rz = rot_z(k * np.pi / 2)
+    np.testing.assert_allclose(moved, (voxels - centre) @ Rz.T + centre, atol=1e-5)
+    for a, b in zip(quats, turned, strict=True):
+        np.testing.assert_allclose(matrix_from_quat_wxyz(b), Rz @ matrix_from_quat_wxyz(a), atol=1e-6)
+
+
+def test_vertical_shift_moves_labels_and_drops_those_that_leave(rng):
+    tsdf = np.zeros((R, R, R), np.float32)
+    tsdf[5, 6, 2] = 1.0
+    voxels = np.array([[5.0, 6.0, 2.0], [1.0, 1.0, 14.0]], np.float32)
+    out, moved, inside = shift_scene(tsdf, voxels, 3)
+    assert np.argwhere(out == 1.0).tolist() == [moved[0].astype(int).tolist()] == [[5, 6, 5]]
+    assert inside.tolist() == [True, False]
+    out, moved, inside = shift_scene(tsdf, voxels, -3)
+    assert out.sum() == 0 and inside.tolist() == [False, True]
+
+
+def test_the_dataset_keeps_each_label_on_its_voxel(tmp_path, rng):
+    """Through the training dataset (augmented, several epochs): the label stays on the one occupied voxel."""
+    tsdf = np.zeros((R, R, R), np.float32)
+    tsdf[2, 12, 6] = 1.0
+    write_scene(tmp_path, 0, tsdf, [[2.2, 11.9, 6.1]], _random_quats(rng, 1), [4.0], [1])
+    m = finalize_dataset(tmp_path, GRID)
+    ds = VGNSceneDataset(tmp_path, list(m.scenes), seed=3, augment=True, z_shift=2)
+    seen = set()
+    for epoch in range(12):
+        ds.set_epoch(epoch)
+        item = ds[0]
+        i, j, k = item["index"][0].tolist()
+        assert item["tsdf"][0, i, j, k] == 1.0
+        seen.add((i, j))
+    assert len(seen) == 4  # every quarter turn occurred
+
+
+# -- balance and loss ----------------------------------------------------------------------------------------
+
+
+def test_balance_keeps_as_many_negatives_as_positives(tmp_path):
+    m = _dataset(tmp_path)
+    scenes = list(m.scenes)
+    keep = negatives_per_scene(scenes, np.random.default_rng(0))
+    assert keep.sum() == m.positives == 20 and np.all(keep <= [s.negatives for s in scenes])
+    ds = VGNSceneDataset(tmp_path, scenes, seed=0)
+    draws = []
+    for epoch in range(3):
+        ds.set_epoch(epoch)
+        assert ds.labels() == (20, 20)
+        assert sum(len(ds[n]["label"]) for n in range(len(ds))) == 40
+        draws.append(tuple(ds.keep_negatives))
+    assert len(set(draws)) > 1  # redrawn each epoch
+    unbalanced = VGNSceneDataset(tmp_path, scenes, seed=0, balance=False)
+    assert unbalanced.labels() == (20, 28)
+
+
+def test_the_loss_reads_each_scene_at_its_own_labels():
+    """A prediction equal to the targets at the labelled voxels (and wrong elsewhere) costs nothing."""
+    items = []
+    for index, label in (([[1, 2, 3], [4, 5, 6]], [1.0, 0.0]), ([[1, 2, 3]], [0.0])):
+        n = len(label)
+        items.append({"tsdf": torch.zeros(1, 8, 8, 8), "index": torch.tensor(index), "label": torch.tensor(label),
+                      "quat": torch.nn.functional.normalize(torch.arange(4 * n, dtype=torch.float32).reshape(n, 4)
+                                                            + 1, dim=1),
+                      "width": torch.tensor([3.0] * n)})
+    batch = collate_scenes(items)
+    assert batch["tsdf"].shape == (2, 1, 8, 8, 8) and batch["index"].tolist() == [[0, 1, 2, 3], [0, 4, 5, 6],
+                                                                                 [1, 1, 2, 3]]
+    quality = torch.full((2, 1, 8, 8, 8), 0.5)
+    rotation = torch.zeros(2, 4, 8, 8, 8)
+    rotation[:, 1] = 1.0
+    width = torch.zeros(2, 1, 8, 8, 8)
+    for (b, i, j, k), label, q, w in zip(batch["index"].tolist(), batch["label"], batch["quat"], batch["width"],
+                                         strict=True):
+        quality[b, 0, i, j, k] = label
+        rotation[b, :, i, j, k] = q
+        width[b, 0, i, j, k] = w
+    loss, parts = vgn_loss(VGNOutput(quality, rotation, width), batch)
+    assert float(loss) < 1e-5 and parts["labels"] == 3
+    width[0, 0, 1, 2, 3] += 2.0  # the positive's width off by 2 voxels: 0.01 · 4 / 3 labels
+    loss, _ = vgn_loss(VGNOutput(quality, rotation, width), batch)
+    assert float(loss) == pytest.approx(0.04 / 3, abs=1e-5)
+
+
+def test_split_is_seeded_and_disjoint(tmp_path):
+    m = _dataset(tmp_path, scenes=10)
+    train, held = split_scenes(m, 0.2, seed=5)
+    assert len(held) == 2 and len(train) == 8 and not {s.id for s in train} & {s.id for s in held}
+    assert split_scenes(m, 0.2, seed=5) == (train, held)
+    assert len(split_scenes(m, 0.1, seed=5, max_scenes=4)[1]) == 1
+
+
+# -- a run ---------------------------------------------------------------------------------------------------------
+
+
+def _history(run):
+    return [json.loads(line) for line in (run / "history.jsonl").read_text().splitlines()]
+
+
+def test_trains_resumes_and_refuses_another_dataset(tmp_path):
+    data = tmp_path / "data"
+    _dataset(data)
+    cfg = VGNTrainConfig(data=str(data), epochs=2, batch_size=2, held_out=0.25, seed=1)
+    run = tmp_path / "run"
+    train_vgn(cfg, run, threads=1, device="cpu")
+    rows = _history(run)
+    assert [r["epoch"] for r in rows] == [1, 2]
+    for r in rows:
+        assert np.isfinite(r["loss"]) and np.isfinite(r["held_out_loss"]) and 0 <= r["accuracy"] <= 1
+        assert r["labels"] == 2 * sum(s.positives for s in split_scenes(read_manifest(data), 0.25, 1)[0])
+    ckpt = load_vgn_checkpoint(run / "last.pt")
+    assert ckpt["epoch"] == 2 and "optimizer" in ckpt and ckpt["dataset"]["sha256"] == read_manifest(data).sha256
+    assert ckpt["dataset"]["train_scenes"] == 3 and ckpt["dataset"]["held_out_scenes"] == 1
+
+    final = train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "epochs": 3}), run, threads=1, device="cpu")
+    rows3 = _history(run)
+    assert [r["epoch"] for r in rows3] == [1, 2, 3] and rows3[:2] == rows
+    assert load_vgn_checkpoint(final)["epoch"] == 3 and "optimizer" not in load_vgn_checkpoint(final)
+    # resuming gives the weights of an uninterrupted run
+    straight = tmp_path / "straight"
+    train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "epochs": 3}), straight, threads=1, device="cpu")
+    a, b = load_vgn_model(run / "final.pt").net.state_dict(), load_vgn_model(straight / "final.pt").net.state_dict()
+    for key in a:
+        torch.testing.assert_close(a[key], b[key])
+
+    other = tmp_path / "other"
+    _dataset(other, seed=9)
+    with pytest.raises(CheckpointError, match="another dataset"):
+        train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "data": str(other), "epochs": 4}), run, device="cpu")
+    with pytest.raises(CheckpointError, match="other settings"):
+        train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "lr": 1e-3, "epochs": 4}), run, device="cpu")
+
+    moved = tmp_path / "moved"
+    shutil.copytree(data, moved)  # the same dataset in another folder resumes
+    train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "data": str(moved), "epochs": 4}), run, device="cpu")
+    assert [r["epoch"] for r in _history(run)] == [1, 2, 3, 4]
+
+    weights, card = export_vgn(run, "vgn_tiny", tmp_path / "ship")
+    assert load_vgn_model(weights).grid == GRID and "| sha256 |" in card.read_text()
