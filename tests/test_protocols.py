@@ -19,11 +19,15 @@ TASKS = Path(__file__).resolve().parents[1] / "tasks"
 
 
 def test_the_registry_gives_the_protocols_and_their_groups():
-    assert list(PROTOCOLS) == ["single_object", "multi_object", "pile", "packed"] == list(config.PROTOCOLS)
-    assert protocols.CLEARANCE_PROTOCOLS == config.CLEARANCE_PROTOCOLS == ("multi_object", "pile", "packed")
-    assert protocols.CLUTTER_PROTOCOLS == config.CLUTTER_PROTOCOLS == HARD_PROTOCOLS == ("pile", "packed")
+    giga = ("giga_pile", "giga_packed")
+    assert list(PROTOCOLS) == ["single_object", "multi_object", "pile", "packed", *giga] == list(config.PROTOCOLS)
+    assert protocols.CLEARANCE_PROTOCOLS == config.CLEARANCE_PROTOCOLS == ("multi_object", "pile", "packed", *giga)
+    assert protocols.CLUTTER_PROTOCOLS == config.CLUTTER_PROTOCOLS == ("pile", "packed", *giga)
+    assert HARD_PROTOCOLS == ("pile", "packed")
     assert all(p.arrangement in ARRANGEMENTS for p in PROTOCOLS.values())
-    assert [name for name, p in PROTOCOLS.items() if p.pile_box] == ["pile"]
+    assert [name for name, p in PROTOCOLS.items() if p.pile_box] == ["pile", "giga_pile"]
+    assert [name for name, p in PROTOCOLS.items() if p.report_tier == "giga"] == list(giga)
+    assert all(PROTOCOLS[n].draws_with_replacement and PROTOCOLS[n].workspace_cube for n in giga)
 
 
 def test_what_each_protocol_means():
