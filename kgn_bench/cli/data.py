@@ -1,4 +1,4 @@
-"""``kgn-bench data``: generate and draw the Primitive Shape dataset."""
+"""``kgn-bench data``: generate and draw the Primitive Shape dataset; generate VGN's."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ __all__ = ["add"]
 
 def add(sub) -> None:
     """The ``data`` command group."""
-    data = sub.add_parser("data", help="the Primitive Shape dataset")
+    data = sub.add_parser("data", help="the Primitive Shape dataset, and VGN's training data")
     dsub = data.add_subparsers(dest="data_command", required=True, parser_class=Parser)
-    for add_command in (_add_generate, _add_show):
+    for add_command in (_add_generate, _add_show, _add_vgn):
         add_command(dsub)
 
 
@@ -96,4 +96,46 @@ def _cmd_data_show(args) -> int:
     writable_file(args.out, "image")
     save_png(args.out, show_view(args.dir, args.scene, args.view, box=args.box))
     print(f"wrote {args.out}")
+    return 0
+
+
+VGN_OBJECTS = ("primitives", "household")
+"""The default training set of ``kgn-bench data vgn``: the six primitives and the eight household shapes."""
+
+
+def _add_vgn(dsub) -> None:
+    """``kgn-bench data vgn``: its arguments."""
+    vgn = dsub.add_parser("vgn", help="generate VGN's training data: GIGA-style scenes, grasps labelled in physics "
+                                      "with the floating Panda hand (resumes an interrupted run)",
+                          parents=[parent(workers_option(1, cluster=True), cluster_options, quiet_option)])
+    vgn.add_argument("--scenes", type=int_at_least(1), default=1000,
+                     help="number of scenes, half piles, half packed (default 1000; a finished dataset grows when "
+                          "rerun with more)")
+    vgn.add_argument("--grasps", type=int_at_least(1), default=120, help="grasp positions per scene (default 120)")
+    vgn.add_argument("--seed", type=int_at_least(0), default=0, help="dataset seed (default 0)")
+    vgn.add_argument("--objects", nargs="+", metavar="NAME", default=list(VGN_OBJECTS),
+                     help="object types, imported objects or sets to draw from (default: primitives household); "
+                          "never the real test set")
+    vgn.add_argument("--out", type=Path, required=True, help="output folder")
+    vgn.set_defaults(func=_cmd_data_vgn)
+
+
+def _cmd_data_vgn(args) -> int:
+    from kgn_bench.data.vgn_generate import VGNDataConfig, generate_vgn_dataset
+    from kgn_bench.shapes import OBJECTS, PRIMITIVES
+    from kgn_bench.shapes.library import set_names
+
+    groups = {"primitives": list(PRIMITIVES), "household": [n for n in OBJECTS if n not in PRIMITIVES]}
+    items = [n for item in args.objects for n in groups.get(item, [item])]
+    objects = _object_names(items)
+    test = set(set_names("pybullet_test"))
+    if test & set(objects):
+        return fail(f"{', '.join(sorted(test & set(objects)))}: real test objects never go into training data")
+    backend = make_backend(args)
+    writable(args.out)
+    config = VGNDataConfig(scenes=args.scenes, objects=tuple(objects), grasps_per_scene=args.grasps, seed=args.seed)
+    stats = generate_vgn_dataset(config, args.out, workers=args.workers, progress=not args.quiet, backend=backend)
+    print(f"{args.out}: {stats['scenes']} scenes generated now in {stats['wall_s']:.0f} s "
+          f"({stats['scenes_per_hour']:.0f} scenes/h, {stats['grasps']} grasps); the dataset holds "
+          f"{stats['total_grasps']} grasps, {stats['positives']} of them positive")
     return 0

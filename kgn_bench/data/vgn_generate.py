@@ -9,7 +9,8 @@ hand's work cell (``sim.floating_hand``); objects that leave the workspace cube 
   (``kgn_bench.tsdf``);
 - **grasps**: ``grasps_per_scene`` grasp positions, each on a point ``p`` drawn uniformly (by area) from the
   objects' surfaces inside the valid part of the workspace (2 cm in from its sides, 5 mm above the table)
-  whose outward normal ``n`` has ``n_z > −0.1``. The approach is ``a = −n``; the fingertips go
+  whose outward normal ``n`` has ``n_z > −0.1`` and that one of VGN's 1 to 6 random views from above sees
+  (``grasp_views``: VGN samples the surface those views reconstruct). The approach is ``a = −n``; the fingertips go
   ``e ~ U(−0.1 d, 1.1 d)`` past ``p`` (``d`` = the hand's finger length, VGN's finger depth), so the grasp
   origin (the fingertip midpoint) is ``o = p + e·a``. The closing axis at yaw 0 is the world x axis made
   perpendicular to ``a`` (world y if ``a`` is nearly along x), and ``yaws`` closing axes turned about ``a``
@@ -27,19 +28,38 @@ widths in voxels. Grasps whose origin lies outside the valid part of the cube ar
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 import trimesh
 
 from kgn_bench import giga
-from kgn_bench.geometry import quat_wxyz_from_matrix
-from kgn_bench.sim.floating_hand import FloatingHand, execute_grasp
-from kgn_bench.sim.scene import PhysicsError, Scene
+from kgn_bench.camera import INTRINSICS, orbit_pose
+from kgn_bench.data.format import DatasetError
+from kgn_bench.data.vgn_format import finalize_dataset, list_scene_ids, write_scene
+from kgn_bench.environment import computed_with
+from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix
+from kgn_bench.gripper import PANDA_HAND
+from kgn_bench.io import atomic_write_text
+from kgn_bench.pool import LOCAL, Backend, run_jobs
+from kgn_bench.progress import Progress
+from kgn_bench.shapes import PRIMITIVES, giga_objects
+from kgn_bench.shapes.scaled import giga_names
+from kgn_bench.sim.depth_noise import DexNoise
+from kgn_bench.sim.floating_hand import FloatingHand, add_floating_cell, execute_grasp
+from kgn_bench.sim.placement import GIGA_PILE, add_pile_box, giga_pack, giga_pile
+from kgn_bench.sim.render import SceneRenderer
+from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
+from kgn_bench.threads import pin_worker_threads
+from kgn_bench.tsdf import TSDFVolume, VoxelGrid
 
-__all__ = ["VALID_MARGIN", "GraspLabels", "grasp_frames", "label_grasps", "sample_surface_points", "to_voxels",
-           "widest_run_centre"]
+__all__ = ["VALID_MARGIN", "GraspLabels", "VGNDataConfig", "generate_scene", "generate_vgn_dataset", "grasp_frames",
+           "grasp_views", "label_grasps", "sample_surface_points", "side_view", "to_voxels", "widest_run_centre"]
 
 VALID_MARGIN = 0.02
 """Grasp positions stay this far (m) inside the workspace cube's sides (VGN's cleaning of its data)."""
@@ -47,12 +67,15 @@ TABLE_MARGIN = 0.005
 """Surface points lower than this (m) above the table are not sampled (VGN's valid volume)."""
 
 
-def sample_surface_points(scene: Scene, n: int, rng: np.random.Generator, max_normal_down: float = -0.1
+def sample_surface_points(scene: Scene, n: int, rng: np.random.Generator, max_normal_down: float = -0.1,
+                          views: list[tuple[np.ndarray, np.ndarray]] | None = None, tolerance: float = 0.003
                           ) -> tuple[np.ndarray, np.ndarray]:
     """``n`` world points (n, 3) and their outward unit normals (n, 3) drawn uniformly by area from the visual
     surfaces of the objects still in the scene, kept only where the point lies in the valid volume (``VALID_MARGIN``
-    inside the cube's sides, ``TABLE_MARGIN`` above the table) and ``n_z > max_normal_down``. Fewer than ``n``
-    when too few such points exist among ``20 n`` draws."""
+    inside the cube's sides, ``TABLE_MARGIN`` above the table) and ``n_z > max_normal_down``, and, given
+    ``views`` (planar depth (H, W) m, ``T_world_cam``) of the scene's camera intrinsics, only where some view sees
+    it: its depth in that view is within ``tolerance`` of the depth rendered at its pixel (VGN samples the
+    surface its views reconstruct). Fewer than ``n`` when too few such points exist among ``20 n`` draws."""
     meshes = []
     for i, obj in enumerate(scene.objects):
         if i in scene.retired:
@@ -68,10 +91,48 @@ def sample_surface_points(scene: Scene, n: int, rng: np.random.Generator, max_no
     grid = points - giga.WORKSPACE_ORIGIN
     inside = np.all((grid >= VALID_MARGIN) & (grid <= giga.WORKSPACE_SIZE - VALID_MARGIN), axis=1)
     keep = inside & (points[:, 2] >= TABLE_MARGIN) & (normals[:, 2] > max_normal_down)
+    if views is not None:
+        seen = np.zeros(len(points), dtype=bool)
+        for depth, T_world_cam in views:
+            seen |= _visible(points, depth, scene.intrinsics.K, T_world_cam, tolerance)
+        keep &= seen
     idx = np.flatnonzero(keep)
     if len(idx) > n:
         idx = rng.choice(idx, size=n, replace=False)
     return points[idx], normals[idx]
+
+
+def _visible(points: np.ndarray, depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, tolerance: float
+             ) -> np.ndarray:
+    """(N,) bool: which world ``points`` project into the image in front of the camera at a pixel whose
+    rendered planar depth is within ``tolerance`` of theirs."""
+    T = np.linalg.inv(T_world_cam)
+    p = points @ T[:3, :3].T + T[:3, 3]
+    z = p[:, 2]
+    out = np.zeros(len(points), dtype=bool)
+    front = z > 1e-6
+    uv = (p[front, :2] / z[front, None]) @ K[:2, :2].T + K[:2, 2]
+    u, v = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
+    h, w = depth.shape
+    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    idx = np.flatnonzero(front)[inside]
+    out[idx] = np.abs(depth[v[inside], u[inside]] - z[idx]) < tolerance
+    return out
+
+
+def grasp_views(rng: np.random.Generator) -> list[np.ndarray]:
+    """VGN's random views for sampling grasps, ``T_world_cam`` each: ``n ~ U{1..6}`` cameras at ``r ~ U(1.6, 2.4)``
+    × the cube's side, polar angle ``θ ~ U(0, π/4)``, azimuth ``φ ~ U(0, 2π)``, looking at the cube's centre
+    line at the cube's floor (their origin ``(0.15, 0.15, 0)``)."""
+    target = np.array([0.0, 0.0, giga.WORKSPACE_ORIGIN[2]])
+    out = []
+    for _ in range(int(rng.integers(1, 7))):
+        r = rng.uniform(1.6, 2.4) * giga.WORKSPACE_SIZE
+        theta, phi = rng.uniform(0.0, np.pi / 4), rng.uniform(0.0, 2.0 * np.pi)
+        T = orbit_pose(r, np.pi / 2 - max(theta, 1e-3), phi)
+        T[:3, 3] += target
+        out.append(T)
+    return out
 
 
 def grasp_frames(points: np.ndarray, normals: np.ndarray, depths: np.ndarray, yaws: int) -> np.ndarray:
@@ -161,3 +222,136 @@ def to_voxels(poses: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, np.nda
     keep = np.all((grid >= VALID_MARGIN) & (grid <= giga.WORKSPACE_SIZE - VALID_MARGIN), axis=1)
     quats = np.array([quat_wxyz_from_matrix(T[:3, :3]) for T in poses]).reshape(-1, 4)
     return grid / giga.VOXEL_SIZE, quats, widths / giga.VOXEL_SIZE, keep
+
+
+@dataclass(frozen=True)
+class VGNDataConfig:
+    """The generator's settings. Scene ``i`` draws everything from ``default_rng([seed, i])`` and is a pile
+    when ``i`` is even, packed when odd; ``objects``: the training set (names; never the real test objects)."""
+
+    scenes: int = 2000
+    objects: tuple[str, ...] = tuple(PRIMITIVES)
+    grasps_per_scene: int = 120
+    yaws: int = 6
+    mean_objects: float = 4.0
+    seed: int = 0
+    labels: str = field(default="physics-floating-panda-v1")
+    """The labelling rule's version (a change of rule makes another dataset)."""
+
+    def settings(self) -> dict[str, Any]:
+        return {**asdict(self), "objects": list(self.objects)}
+
+
+def side_view() -> np.ndarray:
+    """GIGA's camera, ``T_world_cam`` (OpenCV axes; ``kgn_bench.giga``)."""
+    T = orbit_pose(giga.CAMERA_DISTANCE, np.deg2rad(giga.CAMERA_ELEVATION_DEG), np.deg2rad(giga.CAMERA_AZIMUTH_DEG))
+    T[:3, 3] += np.asarray(giga.CAMERA_TARGET)
+    return T
+
+
+def _arranged_scene(config: VGNDataConfig, index: int, rng: np.random.Generator) -> tuple[Scene, FloatingHand, str]:
+    """Scene ``index``'s objects placed GIGA's way (a pile or packed), the hand parked; retried on a blow-up or
+    when no object is left in play."""
+    arrangement = "pile" if index % 2 == 0 else "packed"
+    for _ in range(5):
+        count = min(int(rng.poisson(config.mean_objects)) + 1, giga.PACKED_TRIES)
+        shapes = giga_objects(giga_names(config.objects, arrangement, rng, count), arrangement, rng)
+        objects = [SceneObject(shape, tuple(float(c) for c in rng.uniform(0.1, 0.9, 3))) for shape in shapes]
+
+        def extend(root, pile: bool = arrangement == "pile") -> None:
+            add_floating_cell(root, PANDA_HAND)
+            if pile:
+                add_pile_box(root, GIGA_PILE)
+
+        scene = Scene(objects, INTRINSICS["giga"], extend=extend)
+        hand = FloatingHand(scene, PANDA_HAND)
+        hand.park()
+        try:
+            play = giga_pile(scene, rng) if arrangement == "pile" else giga_pack(scene, rng)
+        except PhysicsError:
+            continue
+        if play:
+            return scene, hand, arrangement
+    raise PhysicsError(f"scene {index}: no stable {arrangement} with an object in the workspace in 5 draws")
+
+
+def generate_scene(config: VGNDataConfig, index: int) -> dict[str, Any]:
+    """Scene ``index`` (module doc): its network input, its labelled grasps in VGN's voxel form and its facts."""
+    rng = np.random.default_rng([config.seed, index])
+    t0 = time.perf_counter()
+    scene, hand, arrangement = _arranged_scene(config, index, rng)
+    t1 = time.perf_counter()
+    cam = side_view()
+    with SceneRenderer(scene) as renderer:
+        depth = renderer.render(cam).depth
+        views = [(renderer.render(T).depth, T) for T in grasp_views(rng)]
+    depth = DexNoise().apply(depth, scene.intrinsics.fx, rng)
+    volume = TSDFVolume(VoxelGrid(giga.WORKSPACE_SIZE, giga.RESOLUTION, giga.TRUNCATION_VOXELS),
+                        make_pose(t=giga.WORKSPACE_ORIGIN))
+    volume.integrate(depth, scene.intrinsics, cam)
+    t2 = time.perf_counter()
+    points, normals = sample_surface_points(scene, config.grasps_per_scene, rng, views=views)
+    d = PANDA_HAND.finger_length
+    depths = rng.uniform(-0.1 * d, 1.1 * d, len(points))
+    labels = label_grasps(scene, hand, grasp_frames(points, normals, depths, config.yaws))
+    voxels, quats, widths, keep = to_voxels(labels.poses, labels.widths)
+    t3 = time.perf_counter()
+    in_play = [i for i in range(len(scene.objects)) if i not in scene.retired]
+    meta = {"index": index, "arrangement": arrangement, "objects": [scene.objects[i].shape.name for i in in_play],
+            "seconds": {"scene": round(t1 - t0, 3), "view": round(t2 - t1, 3), "label": round(t3 - t2, 3)}}
+    return {"tsdf": volume.network_input(), "voxels": voxels[keep], "quats": quats[keep], "widths": widths[keep],
+            "labels": labels.labels[keep], "meta": meta}
+
+
+GENERATOR = "vgn_generator.json"
+"""The settings a dataset folder is being generated with, written before its first scene."""
+
+
+def _job(args: tuple[VGNDataConfig, int]) -> tuple[int, dict[str, Any]]:
+    config, index = args
+    return index, generate_scene(config, index)
+
+
+def _prepare(config: VGNDataConfig, out: Path) -> list[int]:
+    """The scene indices still to generate into ``out``; ``DatasetError`` if it is being generated with other
+    settings."""
+    out.mkdir(parents=True, exist_ok=True)
+    settings = {**config.settings(), "kernels": computed_with()}
+    del settings["scenes"]  # a dataset grows by rerunning with more scenes: scene i is the same either way
+    path = out / GENERATOR
+    if path.is_file():
+        existing = json.loads(path.read_text())
+        if existing != settings:
+            diff = [k for k in settings if existing.get(k) != settings[k]]
+            raise DatasetError(f"{out} is being generated with other settings ({', '.join(diff)}); use another folder")
+    else:
+        atomic_write_text(path, json.dumps(settings, indent=1) + "\n")
+    done = set(list_scene_ids(out))
+    return [i for i in range(config.scenes) if f"{i:06d}" not in done]
+
+
+def generate_vgn_dataset(config: VGNDataConfig, out: Path, workers: int = 1, progress: bool = True,
+                         backend: Backend = LOCAL) -> dict[str, float]:
+    """Generate (or finish) VGN's dataset in ``out``; each scene is written as it finishes, so a stopped run
+    resumes where it was; the manifest is written at the end. Returns the throughput figures."""
+    out = Path(out)
+    todo = _prepare(config, out)
+    bar = Progress(len(todo), "vgn data", unit="scenes", enabled=progress)
+    start = time.perf_counter()
+    grasps = 0
+
+    def finished(result: tuple[int, dict[str, Any]]) -> None:
+        nonlocal grasps
+        index, scene = result
+        write_scene(out, index, scene["tsdf"], scene["voxels"], scene["quats"], scene["widths"], scene["labels"],
+                    scene["meta"])
+        grasps += len(scene["labels"])
+        bar.update()
+
+    run_jobs([(config, i) for i in todo], _job, finished, workers=workers, initializer=pin_worker_threads,
+             what=f"VGN data generation into {out}", backend=backend)
+    wall = time.perf_counter() - start
+    manifest = finalize_dataset(out, settings=config.settings())
+    return {"scenes": len(todo), "grasps": grasps, "wall_s": wall,
+            "scenes_per_hour": 3600 * len(todo) / wall if wall > 0 else float("nan"),
+            "positives": manifest.positives, "total_grasps": manifest.grasps}
