@@ -157,8 +157,9 @@ def grasp_frames(points: np.ndarray, normals: np.ndarray, depths: np.ndarray, ya
 
 
 def widest_run_centre(holds: np.ndarray) -> int:
-    """The index in the middle of the longest run of ``True`` in the circular sequence ``holds`` (yaw π
-    follows the last yaw and is yaw 0 again); the first such run when several are as long. −1 when none."""
+    """The index in the middle of the longest run of ``True`` in the circular sequence ``holds`` (yaw π follows
+    the last yaw and is yaw 0 again; the earlier middle of a run of even length); the first such run when several
+    are as long. −1 when none."""
     n = len(holds)
     if not holds.any():
         return -1
@@ -170,7 +171,7 @@ def widest_run_centre(holds: np.ndarray) -> int:
         idx = (start + k) % n
         run = run + 1 if holds[idx] else 0
         if run > best_len:
-            best_len, best_mid = run, (idx - (run - 1) // 2) % n
+            best_len, best_mid = run, (idx - run // 2) % n
     return best_mid
 
 
