@@ -72,14 +72,11 @@ def _attempt_rows(records: list[TrialRecord]) -> str:
 
 def _card(detector: str) -> str:
     """The detector's card: the shipped model card of a learned detector, else a generated one."""
-    from kgn_bench.detectors import DETECTORS, LEARNED
+    from kgn_bench.detectors import DETECTORS, shipped_weights
 
-    if detector in LEARNED:
-        from kgn_bench.detectors.kgn import weights_path
-
-        card = weights_path(detector).with_suffix(".md")
-        if card.is_file():
-            return card.read_text()
+    weights = shipped_weights(detector) if detector in DETECTORS else None
+    if weights is not None and weights.with_suffix(".md").is_file():
+        return weights.with_suffix(".md").read_text()
     if detector in DETECTORS:
         doc = (DETECTORS[detector].__doc__ or "").strip().split("\n\n")[0]
         return f"# {detector}\n\nBuilt-in detector of kgn-bench.\n\n{doc}\n"

@@ -78,14 +78,14 @@ def _git_commit() -> str:
 def _weights_identity(detector: str) -> str | None:
     """SHA-256 of a learned detector's weights file, None for other detectors (``run_benchmark`` has built the
     detector, and so loaded and verified the file, before it asks)."""
-    from kgn_bench.detectors import LEARNED
+    from kgn_bench.detectors import shipped_weights
 
-    if detector not in LEARNED:
+    path = shipped_weights(detector)
+    if path is None:
         return None
-    from kgn_bench.detectors.kgn import weights_path
     from kgn_bench.model.checkpoint import file_sha256
 
-    return file_sha256(weights_path(detector))
+    return file_sha256(path)
 
 
 CONTENT_KEYS = ("weights_sha256", "objects_sha256", "detector_fingerprint")

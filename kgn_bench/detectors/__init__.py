@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
+from pathlib import Path
 
 from kgn_bench.errors import InputError
 
@@ -18,7 +19,7 @@ from .oracle import OracleDetector
 from .random import RandomDetector
 
 __all__ = ["DETECTORS", "LEARNED", "WEIGHTED", "Candidates", "Detector", "DetectorError", "Observation",
-           "detector_factory", "make_detector"]
+           "detector_factory", "make_detector", "shipped_weights"]
 
 
 def _learned(variant: str) -> Callable[..., Detector]:
@@ -43,6 +44,23 @@ LEARNED = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth")
 
 WEIGHTED = (*LEARNED, "vgn")
 """Every registered detector that loads trained weights (``make_detector`` passes ``weights`` on to them)."""
+
+
+
+def shipped_weights(name: str) -> Path | None:
+    """The weights file a registered detector loads when given none (``assets/weights/…``; it may not exist
+    yet); None for a detector without weights. Its SHA-256 is part of a run's identity and its model card
+    (the ``.md`` beside it) goes into results bundles."""
+    if name in LEARNED:
+        from .kgn import weights_path
+
+        return weights_path(name)
+    if name == "vgn":
+        from .vgn import vgn_weights_path
+
+        return vgn_weights_path()
+    return None
+
 
 DETECTORS: dict[str, Callable[..., Detector]] = {
     "antipodal": AntipodalDetector,
