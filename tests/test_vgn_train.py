@@ -61,14 +61,14 @@ def _dataset(folder, seed=0, scenes=4):
 
 def test_config_file(tmp_path):
     path = tmp_path / "vgn.toml"
-    path.write_text('[train]\ndata = "data/vgn_packed"\nepochs = 12\naugment = false\n')
+    path.write_text('[vgn]\ndata = "data/vgn_packed"\nepochs = 12\naugment = false\n')
     cfg = load_vgn_train_config(path)
     assert cfg == VGNTrainConfig(data="data/vgn_packed", epochs=12, augment=False)
     assert (cfg.lr, cfg.batch_size, cfg.held_out, cfg.balance) == (3e-4, 8, 0.1, True)
-    for text, match in (('[train]\ndata = "d"\nepoch = 3\n', "unknown key 'epoch'"),
-                        ('[train]\nepochs = 3\n', "data must name the dataset folder"),
-                        ('[train]\ndata = "d"\nheld_out = 1.5\n', "held_out must lie in"),
-                        ('[train]\ndata = "d"\n[model]\n', "unknown section")):
+    for text, match in (('[vgn]\ndata = "d"\nepoch = 3\n', "unknown key 'epoch'"),
+                        ('[vgn]\nepochs = 3\n', "data must name the dataset folder"),
+                        ('[vgn]\ndata = "d"\nheld_out = 1.5\n', "held_out must lie in"),
+                        ('[vgn]\ndata = "d"\n[model]\n', "unknown section")):
         path.write_text(text)
         with pytest.raises(VGNTrainConfigError, match=match) as e:
             load_vgn_train_config(path)

@@ -38,7 +38,7 @@ checkpoint of another dataset (manifest SHA-256) or of other settings (anything 
 the dataset folder's path) is refused.
 ``export_vgn`` writes the shipped weights and model card (``assets/weights/vgn.pt``, ``vgn.md``).
 
-A config is a TOML file with one section ``[train]`` whose keys are the fields of ``VGNTrainConfig``.
+A config is a TOML file with one section ``[vgn]`` whose keys are the fields of ``VGNTrainConfig``.
 """
 
 from __future__ import annotations
@@ -104,6 +104,8 @@ class VGNTrainConfig:
     the first N scenes by id; 0 = all), ``workers`` (data-loading processes)."""
 
     data: str = ""
+    out: str = ""
+    """The run folder ``kgn-bench train`` writes to (``train_vgn`` takes its own)."""
     epochs: int = 10
     batch_size: int = 8
     lr: float = 3e-4
@@ -130,13 +132,13 @@ class VGNTrainConfig:
 
 
 def load_vgn_train_config(path: Path) -> VGNTrainConfig:
-    """Parse a VGN training TOML (one ``[train]`` section); ``VGNTrainConfigError`` (one line) on any problem."""
+    """Parse a VGN training TOML (one ``[vgn]`` section); ``VGNTrainConfigError`` (one line) on any problem."""
     path = Path(path)
     raw = read_toml(path, "VGN training config", VGNTrainConfigError)
-    unknown = sorted(set(raw) - {"train"})
+    unknown = sorted(set(raw) - {"vgn"})
     if unknown:
-        raise VGNTrainConfigError(f"{path}: unknown section(s) {', '.join(unknown)} (known: train)")
-    return parse_section(f"{path} [train]", VGNTrainConfig, raw.get("train", {}), VGNTrainConfigError)
+        raise VGNTrainConfigError(f"{path}: unknown section(s) {', '.join(unknown)} (known: vgn)")
+    return parse_section(f"{path} [vgn]", VGNTrainConfig, raw.get("vgn", {}), VGNTrainConfigError)
 
 
 # -- quaternions (w, x, y, z) -------------------------------------------------------------------------------
@@ -352,7 +354,7 @@ def _loader(dataset: VGNSceneDataset, cfg: VGNTrainConfig, device: torch.device,
 def _comparable(config: dict[str, Any]) -> dict[str, Any]:
     """The settings a resumed run must share with its checkpoint: all but ``epochs``, ``workers`` and ``data``
     (the dataset is compared by its SHA-256, so a moved dataset folder resumes)."""
-    return {k: v for k, v in config.items() if k not in ("epochs", "workers", "data")}
+    return {k: v for k, v in config.items() if k not in ("epochs", "workers", "data", "out")}
 
 
 def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device: str | None = None,
