@@ -79,14 +79,17 @@ def test_bad_run_folders_are_named(tmp_path):
         build_report([])
 
 
-def test_the_hard_tier_is_its_own_table_with_gsr_dr_fallen_and_giga(tmp_path):
-    def hard(folder, task, protocol, detector, success, clear, fallen):
-        f = _run(folder, task, detector, success, clear=clear)
-        s = json.loads((f / "summary.json").read_text())
-        s.update(protocol=protocol, fell_at_setup=0, fallen=fallen)
-        (f / "summary.json").write_text(json.dumps(s))
-        return f
+def _clutter(folder, task, protocol, detector, success, clear, fallen=0, fell_at_setup=0):
+    """A run folder of a clutter protocol (``pile``, ``giga_pile``, ...): GSR, DR and the objects that left."""
+    f = _run(folder, task, detector, success, clear=clear)
+    s = json.loads((f / "summary.json").read_text())
+    s.update(protocol=protocol, fell_at_setup=fell_at_setup, fallen=fallen)
+    (f / "summary.json").write_text(json.dumps(s))
+    return f
 
+
+def test_the_hard_tier_is_its_own_table_with_gsr_dr_fallen_and_giga(tmp_path):
+    hard = _clutter
     runs = [_run(tmp_path / "a", "single_object", "kgnv2", (114, 120)),
             hard(tmp_path / "b", "pile", "pile", "kgnv2", (30, 60), (30, 50), 2),
             hard(tmp_path / "c", "pile_assisted", "pile", "kgnv2", (45, 60), (45, 50), 0),
@@ -131,3 +134,94 @@ def test_the_environment_line_says_whether_the_cpu_matters(tmp_path):
     assert "Environment: MIXED" in text
     (warning,) = environment_warnings(summaries)
     assert warning.endswith("→ Other CPU")
+
+
+def _section(text, title):
+    """The lines of the report's section ``## title`` (up to the next ``## ``), or of its head before any."""
+    lines = text.splitlines()
+    start = lines.index(f"## {title}") if title else 0
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
+    return lines[start:end]
+
+
+def _cell(k, n):
+    return str(Rate(k, n)).replace(" %", "")
+
+
+def test_gigas_protocol_is_a_third_table_beside_table_i_and_leaves_the_others_alone(tmp_path):
+    from kgn_bench.bench.report import GIGA_PROTOCOLS
+
+    assert GIGA_PROTOCOLS == ("giga_pile", "giga_packed")
+    others = [_run(tmp_path / "main", "single_object", "kgnv2", (114, 120)),
+              _clutter(tmp_path / "hard", "pile", "pile", "antipodal", (30, 60), (30, 50), fallen=2)]
+    giga = [_clutter(tmp_path / "g1", "giga_pile", "giga_pile", "antipodal", (40, 80), (40, 100), fallen=1),
+            _clutter(tmp_path / "g2", "giga_pile", "giga_pile", "vgn", (55, 90), (55, 100)),
+            _clutter(tmp_path / "g3", "giga_packed", "giga_packed", "antipodal", (70, 95), (70, 100)),
+            _clutter(tmp_path / "g4", "giga_packed", "giga_packed", "vgn", (60, 85), (60, 100), fell_at_setup=3)]
+    before, before_payload = build_report(load_summaries(others), tmp_path / "before")
+    text, payload = build_report(load_summaries(others + giga), tmp_path / "out")
+
+    # the main table and the hard tier print exactly what they printed without the GIGA-protocol runs
+    hard = "Hard tier: pile and packed clutter"
+    assert _section(text, None) == _section(before, None)
+    assert _section(text, hard) == _section(before, hard)
+    assert not any("giga" in line for line in _section(text, None) + _section(text, hard))
+
+    section = _section(text, "GIGA's protocol (calibration)")
+    header = next(line for line in section if line.startswith("| detector |"))
+    assert header == "| detector | giga_packed GSR | giga_packed DR | giga_pile GSR | giga_pile DR |"
+    rows = [line for line in section if line.startswith("| ") and line != header]
+    assert rows[:2] == [f"| antipodal | {_cell(70, 95)} | {_cell(70, 100)} | {_cell(40, 80)} | {_cell(40, 100)} |",
+                        f"| vgn | {_cell(60, 85)} | {_cell(60, 100)} | {_cell(55, 90)} | {_cell(55, 100)} |"]
+    assert rows[2:] == ["| SHAF (published) | 56.6 ± 2.0 | 58.0 ± 3.0 | 50.7 ± 1.7 | 42.6 ± 2.8 |",
+                        "| GPD (published) | 35.4 ± 1.9 | 30.7 ± 2.0 | 17.7 ± 2.3 | 9.2 ± 1.3 |",
+                        "| VGN (published) | 74.5 ± 1.3 | 79.2 ± 2.3 | 60.7 ± 4.2 | 44.0 ± 4.9 |",
+                        "| GIGA-Aff (published) | 77.2 ± 2.3 | 78.9 ± 1.7 | 67.8 ± 3.0 | 49.7 ± 1.9 |",
+                        "| GIGA (published) | 83.5 ± 2.4 | 84.3 ± 2.2 | 69.3 ± 3.3 | 49.8 ± 3.9 |",
+                        "| GIGA (HR) (published) | 87.9 ± 3.0 | 86.0 ± 3.2 | 69.8 ± 3.2 | 51.1 ± 2.8 |"]
+    assert not any(line.startswith("| kgnv2 |") for line in section)  # kgnv2 ran no GIGA round
+    note = " ".join(section)
+    assert "antipodal giga_pile: 0 while building, 1 during the rounds" in note
+    assert "vgn giga_packed: 3 while building, 0 during the rounds" in note
+    for differs in ("MuJoCo instead of PyBullet", "43 real test objects", "one seed instead of five",
+                    "GPD ↔ `antipodal`", "VGN ↔ `vgn`"):
+        assert differs in note
+    assert text.index("## Hard tier") < text.index("## GIGA's protocol") < text.index("## Failure reasons")
+
+    assert before_payload["columns"] == [c for c in payload["columns"] if c["tier"] != "giga"]
+    tiers = {c["label"]: c["tier"] for c in payload["columns"]}
+    assert tiers == {"single, primitives": "main", "pile success": "hard", "pile clear": "hard",
+                     "giga_packed success": "giga", "giga_packed clear": "giga",
+                     "giga_pile success": "giga", "giga_pile clear": "giga"}
+    assert payload["detectors"]["vgn"]["giga_pile success"] == Rate(55, 90).to_dict()
+    assert payload["detectors"]["antipodal"]["giga_packed clear"]["k"] == 70
+    assert payload["detectors"]["kgnv2"]["giga_pile success"] is None
+    assert payload["giga_table_i"]["pile"]["VGN"] == {"gsr": {"mean": 60.7, "std": 4.2},
+                                                      "dr": {"mean": 44.0, "std": 4.9}}
+    assert payload["giga"] == before_payload["giga"] and set(payload["giga"]["pile"]) == {"GPD", "VGN", "GIGA"}
+    assert payload["giga_family"] == {"GPD": "antipodal", "VGN": "vgn"}
+    assert payload["fallen"]["vgn/giga_packed"] == {"fell_at_setup": 3, "fallen": 0}
+
+    html = (tmp_path / "out" / "benchmark.html").read_text()
+    assert "<h2>GIGA's protocol (calibration)</h2>" in html and "<td>74.5 ± 1.3</td>" in html
+    chart, chart_before = (cv2.imread(str(tmp_path / d / "benchmark.png")) for d in ("out", "before"))
+    assert chart.shape[0] == chart_before.shape[0] and chart.shape[1] > chart_before.shape[1]  # 4 more groups
+
+
+def test_a_report_of_one_giga_scene_shows_only_its_columns_and_reads_bundles(tmp_path):
+    from kgn_bench.bench.bundle import FORMAT, VERSION
+
+    folder = _clutter(tmp_path / "run", "giga_pile", "giga_pile", "vgn", (55, 90), (55, 100))
+    summary = json.loads((folder / "summary.json").read_text())
+    bundle = tmp_path / "bundle" / "vgn"
+    bundle.mkdir(parents=True)
+    (bundle / "bundle.json").write_text(json.dumps({
+        "format": FORMAT, "version": VERSION, "detector": "vgn",
+        "runs": [{"task": "giga_pile", "protocol": "giga_pile", "summary": summary, "environment": None}]}))
+    text, payload = build_report(load_summaries([bundle]))
+    assert "| detector | single" not in text and "## Hard tier" not in text  # no main table, no hard tier
+    section = _section(text, "GIGA's protocol (calibration)")
+    assert section[section.index("| detector | giga_pile GSR | giga_pile DR |") + 2:][:3] == [
+        f"| vgn | {_cell(55, 90)} | {_cell(55, 100)} |",
+        "| SHAF (published) | 50.7 ± 1.7 | 42.6 ± 2.8 |", "| GPD (published) | 17.7 ± 2.3 | 9.2 ± 1.3 |"]
+    assert f"`{bundle}:giga_pile`" in text and payload["detectors"]["vgn"]["giga_pile clear"]["k"] == 55

@@ -1,9 +1,10 @@
 """The report as a static HTML page (``benchmark.html``) that opens from disk in any browser.
 
 The page is the Markdown report (``report.build_report``: the tables with their Wilson intervals, the hard
-tier, failure reasons per detector, per-object rates, the environment line) turned into HTML by Python-Markdown
-with its ``tables`` extension, with the bar chart beside it and a section of replays: every run folder that
-holds a rerun recording gets a link to it and the command that opens it. Nothing is fetched from the
+tier, GIGA's protocol beside GIGA's Table I, failure reasons per detector, per-object rates, the environment
+line) turned into HTML by Python-Markdown with its ``tables`` extension, with the bar chart beside it and a
+section of replays: every run folder that holds a rerun recording gets a link to it and the command that
+opens it. Nothing is fetched from the
 network: the style is inline and images are files next to the page.
 """
 

@@ -7,10 +7,14 @@ failure reasons per detector summed over its runs, the per-object rates of each 
 real-robot figures (KGNv2 Tab. III and IV) in the columns that correspond to them. Runs of the clutter
 protocols (``pile``, ``packed``) form the hard tier, a table of its own: GSR (successes / attempts) and DR
 (clear rate: removed / on the table) per task, detector-only (``raw``) and assisted rows side by side, the
-objects that fell off the table, and GIGA's published simulation figures as context. Writes
-``benchmark.md``, ``benchmark.json``, ``benchmark.png`` (a grouped bar chart with interval whiskers) and
-``benchmark.html`` (``html_report``: the same tables, the chart and links to replays, for a browser). Run
-folders and results bundles (``bundle``) are read alike.
+objects that fell off the table, and GIGA's published simulation figures as context. Runs of GIGA's own
+protocols (``giga_pile``, ``giga_packed``: ``kgn_bench.giga``) form a third table, GIGA's protocol
+(calibration): GSR and DR per task with GIGA's published Table I (mean ± std over seeds) in the same columns,
+a like-for-like comparison up to what ``GIGA_CALIBRATION_NOTE`` lists. Which table a run goes to is its
+protocol's ``report_tier``. Writes ``benchmark.md``, ``benchmark.json``, ``benchmark.png`` (a grouped bar
+chart with interval whiskers, one group per column of every table) and ``benchmark.html`` (``html_report``:
+the same tables, the chart and links to replays, for a browser). Run folders and results bundles
+(``bundle``) are read alike.
 """
 
 from __future__ import annotations
@@ -28,8 +32,8 @@ from .attempt import FAILURE_REASONS
 from .html_report import write_html
 from .stats import Rate, per_object_meaning
 
-__all__ = ["COLUMNS", "DETECTOR_ORDER", "GIGA", "HARD_PROTOCOLS", "PAPER", "Column", "ReportError", "build_report",
-           "environment_warnings", "load_summaries"]
+__all__ = ["COLUMNS", "DETECTOR_ORDER", "GIGA", "GIGA_FAMILY", "GIGA_PROTOCOLS", "GIGA_TABLE_I", "HARD_PROTOCOLS",
+           "PAPER", "Column", "ReportError", "build_report", "environment_warnings", "load_summaries"]
 
 
 class ReportError(KGNBenchError, RuntimeError):
@@ -61,9 +65,36 @@ COLUMNS = (
 HARD_PROTOCOLS = tuple(name for name, p in PROTOCOLS.items() if p.report_tier == "hard")
 """Protocols reported in the hard tier (``Protocol.report_tier``)."""
 
-GIGA = {"packed": {"GPD": (35.4, 30.7), "VGN": (74.5, 79.2), "GIGA": (83.5, 84.3)},
-        "pile": {"GPD": (17.7, 9.2), "VGN": (60.7, 44.0), "GIGA": (69.3, 49.8)}}
-"""GIGA (Jiang et al. 2021) Table I, single view, 5 objects per round: (GSR %, DR %) per protocol and method."""
+GIGA_PROTOCOLS = tuple(name for name, p in PROTOCOLS.items() if p.report_tier == "giga")
+"""Protocols reported in GIGA's protocol (calibration) table: GIGA's own rounds (``Protocol.giga``)."""
+
+GIGA_TABLE_I: dict[str, dict[str, tuple[tuple[float, float], tuple[float, float]]]] = {
+    "packed": {"SHAF": ((56.6, 2.0), (58.0, 3.0)), "GPD": ((35.4, 1.9), (30.7, 2.0)),
+               "VGN": ((74.5, 1.3), (79.2, 2.3)), "GIGA-Aff": ((77.2, 2.3), (78.9, 1.7)),
+               "GIGA": ((83.5, 2.4), (84.3, 2.2)), "GIGA (HR)": ((87.9, 3.0), (86.0, 3.2))},
+    "pile": {"SHAF": ((50.7, 1.7), (42.6, 2.8)), "GPD": ((17.7, 2.3), (9.2, 1.3)),
+             "VGN": ((60.7, 4.2), (44.0, 4.9)), "GIGA-Aff": ((67.8, 3.0), (49.7, 1.9)),
+             "GIGA": ((69.3, 3.3), (49.8, 3.9)), "GIGA (HR)": ((69.8, 3.2), (51.1, 2.8))},
+}
+"""GIGA (Jiang et al. 2021) Table I, single view, 5 objects a round: ((GSR %, std), (DR %, std)) per scene and
+method in the paper's row order, mean and standard deviation over 5 seeds of 100 rounds each."""
+
+GIGA = {scene: {m: (rows[m][0][0], rows[m][1][0]) for m in ("GPD", "VGN", "GIGA")}
+        for scene, rows in GIGA_TABLE_I.items()}
+"""The rows of ``GIGA_TABLE_I`` the hard tier shows as context: (GSR %, DR %) per scene and method."""
+
+GIGA_FAMILY = {"GPD": "antipodal", "VGN": "vgn"}
+"""Published method → this harness's detector of its family (not the method itself)."""
+
+GIGA_CALIBRATION_NOTE = (
+    "These rounds follow GIGA's protocol (a floating Panda hand, GIGA's camera and depth noise, placement and "
+    "object sizes), so Table I is a like-for-like reference up to what still differs: MuJoCo instead of PyBullet "
+    "(contact model, friction); our 43 real test objects (pybullet_data's procedural random_urdfs plus duck, mug "
+    "and teddy) instead of GIGA's 40 test meshes, which are not available offline; the rounds of one seed instead "
+    "of five (ours: a Wilson 95 % interval; the paper's: ± std over its seeds); and the methods correspond by "
+    "family only: GPD ↔ `antipodal` (a GPD-style sampler, not GPD itself), VGN ↔ `vgn` (VGN's network trained "
+    "on this simulator's data); SHAF, GIGA-Aff, GIGA and GIGA (HR) have no counterpart here."
+)
 
 GIGA_NOTE = (
     "GIGA's figures are context, not a comparison: they come from PyBullet with a free-floating hand (no arm, "
@@ -188,9 +219,9 @@ def _detectors(summaries: list[dict[str, Any]]) -> list[str]:
     return [d for d in DETECTOR_ORDER if d in names] + sorted(names - set(DETECTOR_ORDER))
 
 
-def _is_hard(summary: dict[str, Any]) -> bool:
-    """Whether a run goes to the hard tier (its protocol's ``report_tier``)."""
-    return protocol(summary.get("protocol")).report_tier == "hard"
+def _tier(summary: dict[str, Any]) -> str:
+    """The table a run goes to: its protocol's ``report_tier`` (``main``, ``hard`` or ``giga``)."""
+    return protocol(summary.get("protocol")).report_tier
 
 
 def _cells(summaries: list[dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
@@ -206,14 +237,27 @@ def _cells(summaries: list[dict[str, Any]]) -> dict[tuple[str, str], dict[str, A
 
 @dataclass(frozen=True)
 class _Layout:
-    """What the report shows: the runs by (detector, task), the hard-tier runs, the main and hard-tier columns,
-    and the detectors in display order."""
+    """What the report shows: the runs by (detector, task), the hard-tier and GIGA-protocol runs, the columns of
+    the main table, the hard tier and GIGA's protocol, and the detectors in display order (all of them, and those
+    with a run outside GIGA's protocol: the main table's rows, as before GIGA's protocol had a table)."""
 
     cells: dict[tuple[str, str], dict[str, Any]]
     hard: list[dict[str, Any]]
     columns: list[Column]
     hard_columns: list[Column]
     detectors: list[str]
+    giga: list[dict[str, Any]]
+    giga_columns: list[Column]
+    main_detectors: list[str]
+
+    @property
+    def every(self) -> list[Column]:
+        """The columns of all three tables in report order."""
+        return self.columns + self.hard_columns + self.giga_columns
+
+    def tier(self, col: Column) -> str:
+        """The table column ``col`` belongs to: ``main``, ``hard`` or ``giga``."""
+        return "giga" if col in self.giga_columns else "hard" if col in self.hard_columns else "main"
 
     def rate(self, det: str, col: Column) -> Rate | None:
         """The rate of column ``col`` of ``det``'s run (None if there is no such run or rate)."""
@@ -223,9 +267,9 @@ class _Layout:
 
 def _layout(summaries: list[dict[str, Any]]) -> _Layout:
     cells = _cells(summaries)
-    hard = [s for s in summaries if _is_hard(s)]
-    columns = _columns([s for s in summaries if not _is_hard(s)])
-    return _Layout(cells, hard, columns, _columns(hard), _detectors(summaries))
+    tiers = {t: [s for s in summaries if _tier(s) == t] for t in ("main", "hard", "giga")}
+    return _Layout(cells, tiers["hard"], _columns(tiers["main"]), _columns(tiers["hard"]), _detectors(summaries),
+                   tiers["giga"], _columns(tiers["giga"]), _detectors(tiers["main"] + tiers["hard"]))
 
 
 def _main_lines(layout: _Layout) -> list[str]:
@@ -233,9 +277,9 @@ def _main_lines(layout: _Layout) -> list[str]:
     columns, rate = layout.columns, layout.rate
     lines = ["# KGN-Bench closed-loop benchmark", "",
              "Rates in % with Wilson 95 % intervals and (successes / attempts; for clear: removed / placed)."]
-    if columns:  # a report of hard-tier runs only has no main table
+    if columns:  # a report of hard-tier or GIGA-protocol runs only has no main table
         lines += ["", "| detector | " + " | ".join(c.label for c in columns) + " |", "|---|" + "---|" * len(columns)]
-        for det in layout.detectors:
+        for det in layout.main_detectors:
             lines.append(f"| {det} | " + " | ".join(str(r).replace(" %", "") if (r := rate(det, c)) else "—"
                                                    for c in columns) + " |")
     for det, figures in PAPER.items():
@@ -265,16 +309,22 @@ def _failure_lines(summaries: list[dict[str, Any]], detectors: list[str]) -> tup
 def _payload(summaries: list[dict[str, Any]], layout: _Layout, failures: dict[str, Any],
              per_object: dict[str, Any], viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None
              ) -> dict[str, Any]:
-    """``benchmark.json``: every column's rate per detector, the hard tier's fallen objects, GIGA's and the
-    paper's figures, failures, per-object rates, the runs, and the viewpoint studies' success rates."""
-    every, rate = layout.columns + layout.hard_columns, layout.rate
+    """``benchmark.json``: every column's rate per detector (each column names its ``tier``: ``main``, ``hard``
+    or ``giga``), the clutter runs' fallen objects, GIGA's published figures (``giga``: the hard tier's context
+    rows; ``giga_table_i``: all of Table I with its standard deviations, and ``giga_family``: which of our
+    detectors stands for which published method), the paper's figures, failures, per-object rates, the runs, and
+    the viewpoint studies' success rates."""
+    every, rate = layout.every, layout.rate
     payload = {
-        "columns": [{"task": c.task, "rate": c.rate, "label": c.label} for c in every],
+        "columns": [{"task": c.task, "rate": c.rate, "label": c.label, "tier": layout.tier(c)} for c in every],
         "detectors": {det: {c.label: (rate(det, c).to_dict() if rate(det, c) else None) for c in every}
                       for det in layout.detectors},
         "fallen": {f"{s['detector']}/{s['task']}": {k: s.get(k, 0) for k in ("fell_at_setup", "fallen")}
-                   for s in layout.hard},
+                   for s in layout.hard + layout.giga},
         "giga": GIGA,
+        "giga_table_i": {scene: {m: {"gsr": {"mean": gsr[0], "std": gsr[1]}, "dr": {"mean": dr[0], "std": dr[1]}}
+                                 for m, (gsr, dr) in rows.items()} for scene, rows in GIGA_TABLE_I.items()},
+        "giga_family": GIGA_FAMILY,
         "failures": failures,
         "per_object": per_object,
         "paper": {det: {f"{t}/{r}": {"rate": v, "half_width": h, "trials": n} for (t, r), (v, h, n) in f.items()}
@@ -303,7 +353,7 @@ def _write_report(out: Path, text: str, payload: dict[str, Any], layout: _Layout
             atomic_write(out / f"viewpoints_{name}.png", lambda f, data=data: f.write(data))
     atomic_write_text(out / "benchmark.md", text)
     atomic_write_text(out / "benchmark.json", json.dumps(payload, indent=1) + "\n")
-    _chart(layout.detectors, layout.columns + layout.hard_columns, layout.rate, out / "benchmark.png")
+    _chart(layout.detectors, layout.every, layout.rate, out / "benchmark.png")
     write_html(text, summaries, out)
 
 
@@ -311,19 +361,21 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
                  viewpoints: dict[str, tuple[Any, dict[str, list[Any]]]] | None = None) -> tuple[str, dict[str, Any]]:
     """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png,html}. ``viewpoints``
     (``benchmark.run_plan``: name → (study, sweep points per detector)) adds the viewpoint study: its
-    tables, and its plots copied to out/viewpoints_<name>.png. Runs go to the main table or to the hard tier by
-    their protocol's ``report_tier``."""
+    tables, and its plots copied to out/viewpoints_<name>.png. Runs go to the main table, the hard tier or GIGA's
+    protocol (calibration) by their protocol's ``report_tier``."""
     if not summaries:
         raise ReportError("no runs to report")
     layout = _layout(summaries)
     lines = _main_lines(layout)
     if layout.hard:
         lines += _hard_lines(layout.hard, layout.hard_columns, layout.detectors, layout.rate)
+    if layout.giga:
+        lines += _giga_lines(layout.giga, layout.giga_columns, layout.detectors, layout.rate)
     if viewpoints:
         lines += _viewpoint_lines(viewpoints)
     failure_lines, failures = _failure_lines(summaries, layout.detectors)
     lines += failure_lines
-    tasks = list(dict.fromkeys(c.task for c in layout.columns + layout.hard_columns))
+    tasks = list(dict.fromkeys(c.task for c in layout.every))
     per_object = _per_object(summaries, tasks, layout.detectors)
     lines += _per_object_lines(per_object, {s["task"]: s.get("protocol") for s in summaries})
     lines += ["", "Runs: " + ", ".join(f"`{s['run']}`" for s in summaries), "", _environment_line(summaries)]
@@ -362,21 +414,12 @@ def _camera_text(value: Any) -> str:
 
 def _hard_lines(hard: list[dict[str, Any]], columns: list[Column], detectors: list[str], rate) -> list[str]:
     """The hard tier: detectors × (task, GSR / DR), the objects that fell, and GIGA's figures as context."""
-    label = {"success": "GSR", "clear": "DR"}
     lines = ["", "## Hard tier: pile and packed clutter", "",
              "GSR = successes / executed grasps, DR = objects removed / objects on the table at the start of the "
              "round, in % with Wilson 95 % intervals. `raw`: the detector's grasp executed as predicted (the paper's "
              "checks only); `assisted`: with the selector's repairs (pose search, centring, levelling, bite).", "",
-             "| detector | " + " | ".join(f"{c.task} {label.get(c.rate, c.rate)}" for c in columns) + " |",
-             "|---|" + "---|" * len(columns)]
-    for det in detectors:
-        cells = [str(r).replace(" %", "") if (r := rate(det, c)) else "—" for c in columns]
-        if any(cell != "—" for cell in cells):
-            lines.append(f"| {det} | " + " | ".join(cells) + " |")
-    fell = [(s["detector"], s["task"], s.get("fell_at_setup", 0), s.get("fallen", 0)) for s in hard]
-    if any(a or b for _, _, a, b in fell):
-        lines += ["", "Objects off the table: " + "; ".join(f"{d} {t}: {a} while building, {b} during the rounds"
-                                                            for d, t, a, b in fell if a or b) + "."]
+             *_clutter_rows(columns, detectors, rate)]
+    lines += _fell_lines(hard, "Objects off the table")
     lines += ["", "GIGA Table I (simulation, single view, 5 objects), GSR / DR %:", "",
               "| method | " + " | ".join(f"{p} GSR | {p} DR" for p in GIGA) + " |",
               "|---|" + "---:|---:|" * len(GIGA)]
@@ -384,6 +427,47 @@ def _hard_lines(hard: list[dict[str, Any]], columns: list[Column], detectors: li
         lines.append(f"| {method} (published) | "
                      + " | ".join(f"{GIGA[p][method][0]:.1f} | {GIGA[p][method][1]:.1f}" for p in GIGA) + " |")
     return [*lines, "", GIGA_NOTE]
+
+
+def _clutter_rows(columns: list[Column], detectors: list[str], rate) -> list[str]:
+    """A clutter table's header (task GSR / DR) and one row per detector that has a run in it."""
+    label = {"success": "GSR", "clear": "DR"}
+    lines = ["| detector | " + " | ".join(f"{c.task} {label.get(c.rate, c.rate)}" for c in columns) + " |",
+             "|---|" + "---|" * len(columns)]
+    for det in detectors:
+        cells = [str(r).replace(" %", "") if (r := rate(det, c)) else "—" for c in columns]
+        if any(cell != "—" for cell in cells):
+            lines.append(f"| {det} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _fell_lines(runs: list[dict[str, Any]], what: str) -> list[str]:
+    """The runs' objects that left the table while the round was built and during it (none: no line)."""
+    fell = [(s["detector"], s["task"], s.get("fell_at_setup", 0), s.get("fallen", 0)) for s in runs]
+    if not any(a or b for _, _, a, b in fell):
+        return []
+    return ["", f"{what}: " + "; ".join(f"{d} {t}: {a} while building, {b} during the rounds"
+                                        for d, t, a, b in fell if a or b) + "."]
+
+
+def _giga_lines(giga: list[dict[str, Any]], columns: list[Column], detectors: list[str], rate) -> list[str]:
+    """GIGA's protocol (calibration): detectors × (task, GSR / DR), GIGA's Table I in the same columns (each
+    task's scene, ``giga_pile`` → pile), the objects that left, and what still differs from GIGA's setting."""
+    scene = {s["task"]: str(s.get("protocol")).removeprefix("giga_") for s in giga}
+    lines = ["", "## GIGA's protocol (calibration)", "",
+             "GIGA's clutter rounds in GIGA's own setting (`kgn_bench.giga`). GSR = successes / executed grasps, "
+             "DR = objects removed / objects in the round, in % with Wilson 95 % intervals (k/n). The published rows "
+             "are GIGA's Table I (Jiang et al. 2021, single view, 5 objects a round): mean ± std over 5 seeds of "
+             "100 rounds, in the column of the same scene.", "",
+             *_clutter_rows(columns, detectors, rate)]
+    which = {"success": 0, "clear": 1}  # GSR, DR
+    for method in next(iter(GIGA_TABLE_I.values())):
+        figures = [GIGA_TABLE_I.get(scene.get(c.task), {}).get(method) for c in columns]
+        lines.append(f"| {method} (published) | " + " | ".join(
+            "{:.1f} ± {:.1f}".format(*f[which[c.rate]]) if f and c.rate in which else "—"
+            for c, f in zip(columns, figures)) + " |")
+    lines += _fell_lines(giga, "Objects that left the round")
+    return [*lines, "", GIGA_CALIBRATION_NOTE]
 
 
 def _per_object(summaries: list[dict[str, Any]], tasks: list[str],
