@@ -126,8 +126,10 @@ class SelectorConfig:
     highest-scoring candidate that passes the paper's checks (width, collision of the bare gripper with the
     observed cloud and the table, points between the fingers, IK) is executed exactly as predicted; raw
     ignores the settings in ``RAW_SELECTOR`` (``effective``). ``top``: VGN's and GIGA's evaluation, the
-    detector alone: its highest-scoring candidate whose width the gripper can open to and whose origin lies
-    in the workspace is executed as predicted, with no other check and no retry memory."""
+    detector alone: its highest-scoring candidate whose origin lies in the workspace is executed as predicted,
+    with no other check and no retry memory. GIGA's hand opens fully for every grasp, so a candidate's width
+    decides nothing there: a detector that finds a grasp too wide for the hand drops it itself (VGN's width mask
+    does)."""
 
     mode: str = "assisted"
     score: str = "confidence_minus_error"

@@ -454,14 +454,16 @@ FLOATING = ExecutionConfig(hand="floating", gripper="panda")
 
 
 def test_top_mode_executes_the_best_candidate_with_no_check_but_the_width(points, ik):
-    """GIGA's evaluation: the best-scoring candidate the hand can open to, as predicted (a deep grasp that
-    collides with the observed box included); no retry memory."""
+    """GIGA's evaluation: the best-scoring candidate, as predicted (a deep grasp that collides with the observed
+    box included, a width beyond the hand's too: GIGA's hand opens fully for every grasp); no retry memory."""
     top = SelectorConfig(mode="top")
     deep = _pose((0.0, 0.0, -0.02))
     wide = _pose((0.0, 0.0, 0.03))
-    sel = select_grasp(np.stack([wide, deep]), np.array([0.09, 0.06]), np.array([0.9, 0.8]), np.full(2, np.nan),
+    sel = select_grasp(np.stack([wide, deep]), np.array([0.0, 0.06]), np.array([0.9, 0.8]), np.full(2, np.nan),
                        points, None, top, FLOATING)
-    assert sel.index == 1 and sel.rejected["width"] == 1  # 9 cm is more than the Panda hand's 8 cm
+    assert sel.index == 1 and sel.rejected["width"] == 1  # a zero width is no grasp
+    assert select_grasp(np.stack([wide, deep]), np.array([0.09, 0.06]), np.array([0.9, 0.8]), np.full(2, np.nan),
+                        points, None, top, FLOATING).index == 0  # 9 cm: the fully open 8 cm hand tries it
     np.testing.assert_allclose(sel.grasp, deep, atol=1e-12)  # no grasp_depth push, no shift
     np.testing.assert_allclose(sel.pregrasp[:3, 3], deep[:3, 3] + [0.0, 0.0, 0.05], atol=1e-12)
     assert sel.q_pregrasp is None and sel.q_grasp is None

@@ -409,7 +409,7 @@ class GraspSelector:
                 sel.rejected["repeat"] += 1
                 continue
             w = float(widths[k])
-            if not (0.0 < w <= self.g.max_width):
+            if not (0.0 < w <= self.g.max_width or (self.mode == "top" and w > 0.0)):
                 sel.rejected["width"] += 1
                 continue
             open_w = float(self.g.opening(w))
