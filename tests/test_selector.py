@@ -483,3 +483,16 @@ def test_the_selector_takes_ik_exactly_for_the_arm(points, ik):
     with pytest.raises(ValueError, match="IK"):
         select_grasp(np.stack([_pose((0.0, 0.0, 0.03))]), np.array([0.06]), np.ones(1), np.full(1, np.nan), points,
                      None, CFG, EXEC)
+
+
+def test_gigas_protocols_take_grasps_in_their_workspace_cube_only(points):
+    from kgn_bench.bench.selector import GIGA_WORKSPACE, GraspSelector
+
+    inside, outside = _pose((0.0, 0.0, 0.03)), _pose((-0.3, 0.14, 0.03))  # the table beyond the 30 cm cube
+    selector = GraspSelector(SelectorConfig(mode="top"), FLOATING, None, GIGA_WORKSPACE)
+    sel = selector.select(np.stack([outside, inside]), np.array([0.05, 0.05]), np.array([0.9, 0.8]),
+                          np.full(2, np.nan), points)
+    assert sel.index == 1 and sel.rejected["workspace"] == 1
+    arm = GraspSelector(SelectorConfig(mode="top"), FLOATING, None)  # the arm's workspace reaches 40 cm out
+    assert arm.select(np.stack([outside, inside]), np.array([0.05, 0.05]), np.array([0.9, 0.8]), np.full(2, np.nan),
+                      points).index == 0

@@ -20,7 +20,8 @@ counted:
 5. ``ik``: IK reaches the pre-grasp and then the grasp within joint limits.
 
 Before these, ``workspace``: a candidate whose grasp origin is not in the workspace over the table
-(``|x|, |y| ≤ sim.robot.WORKSPACE_HALF``, ``−2 cm ≤ z ≤ WORKSPACE_TOP``) is not a grasp of anything the task is
+(``ARM_WORKSPACE``: ``|x|, |y| ≤ sim.robot.WORKSPACE_HALF``, ``−2 cm ≤ z ≤ WORKSPACE_TOP``; in GIGA's protocols
+``GIGA_WORKSPACE``, their 30 cm cube, to which they crop every detector's input) is not a grasp of anything the task is
 about, whatever it encloses: the parked arm, its base and the place bin are in the image from some viewpoints,
 and a grasp on them is executed after the arm has left (every real system bounds its workspace the same way).
 Then ``repeat``: a candidate within ``retry_distance`` and ``retry_angle_deg`` (either symmetric form) of a
@@ -78,13 +79,19 @@ from kgn_bench.gripper import GRIPPER, GripperBox, GripperGeometry, box_corners
 from kgn_bench.sim.control import IK
 from kgn_bench.sim.robot import READY_Q, WORKSPACE_HALF
 
-__all__ = ["CENTRE_MIN_SPAN", "CENTRE_VIEW_DEG", "REJECTIONS", "WORKSPACE_TOP", "DepthView", "GraspSelector",
+__all__ = ["ARM_WORKSPACE", "CENTRE_MIN_SPAN", "CENTRE_VIEW_DEG", "GIGA_WORKSPACE", "REJECTIONS", "WORKSPACE_TOP",
+           "DepthView", "GraspSelector",
            "Selection", "centre_offset", "centring_blind", "closing_z", "level_poses", "near_failed",
            "score_candidates", "search_offsets", "select_grasp", "valid_candidates"]
 
 REJECTIONS = ("workspace", "repeat", "width", "collision", "occluded", "enclosure", "ik")
 WORKSPACE_TOP = 0.4
 """Highest grasp origin (m above the table top) the selector accepts."""
+ARM_WORKSPACE = (np.array([-WORKSPACE_HALF, -WORKSPACE_HALF, -0.02]), np.array([WORKSPACE_HALF, WORKSPACE_HALF,
+                                                                             WORKSPACE_TOP]))
+"""The box (world, m: lowest and highest corner) a grasp origin must lie in: the arm's workspace over the table."""
+GIGA_WORKSPACE = (giga.WORKSPACE_ORIGIN, giga.WORKSPACE_ORIGIN + giga.WORKSPACE_SIZE)
+"""GIGA's workspace cube (``kgn_bench.giga``): in GIGA's protocols every detector sees only what lies in it."""
 CENTRE_VIEW_DEG = 45.0
 """Centring applies when the closing axis is at most this far from perpendicular to the camera ray."""
 
@@ -359,10 +366,12 @@ class GraspSelector:
     world-frame ``T_world_grasp``.
     """
 
-    def __init__(self, cfg: SelectorConfig, execution: ExecutionConfig, ik: IK | None) -> None:
+    def __init__(self, cfg: SelectorConfig, execution: ExecutionConfig, ik: IK | None,
+                 workspace: tuple[np.ndarray, np.ndarray] = ARM_WORKSPACE) -> None:
         self.mode = cfg.mode
         cfg = cfg.effective()
         self.cfg, self.execution, self.ik = cfg, execution, ik
+        self.workspace = workspace
         self.g = g = execution.geometry
         floating = execution.hand == "floating"
         if (ik is None) != floating:
@@ -399,8 +408,8 @@ class GraspSelector:
         repeat = near_failed(poses, np.zeros((0, 4, 4)) if failed is None else failed, cfg.retry_distance,
                              np.deg2rad(cfg.retry_angle_deg))
         t = poses[:, :3, 3]
-        over_table = np.all(np.abs(t[:, :2]) <= WORKSPACE_HALF, axis=1) & (t[:, 2] >= -0.02)
-        over_table &= t[:, 2] <= WORKSPACE_TOP
+        lo, hi = self.workspace
+        over_table = np.all((t >= lo) & (t <= hi), axis=1)
         for k in order:
             if not over_table[k]:
                 sel.rejected["workspace"] += 1

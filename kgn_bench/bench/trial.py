@@ -59,7 +59,7 @@ from kgn_bench.sim.view_check import check_view
 
 from .attempt import NOT_EXECUTED, AttemptResult, execute_floating, execute_grasp
 from .records import AttemptRecord, TrialRecord
-from .selector import DepthView, GraspSelector, Selection
+from .selector import ARM_WORKSPACE, GIGA_WORKSPACE, DepthView, GraspSelector, Selection
 
 __all__ = ["ARRANGEMENTS", "CAMERA_STREAM", "TIMING_KEYS", "Capture", "camera_coordinates", "camera_pose", "capture",
            "check_cameras", "run_trial", "trial_objects"]
@@ -364,7 +364,8 @@ def _detect(detector: Detector, obs: Observation) -> Candidates:
 def _select(task: TaskConfig, ik: IK | None, cands: Candidates, obs: Observation, failed: np.ndarray) -> Selection:
     """The task's selector over the candidates (world frame), on the points and depth of ``obs``."""
     points = obs.points_world(stride=task.selector.point_stride)
-    return GraspSelector(task.selector, task.execution, ik).select(
+    workspace = GIGA_WORKSPACE if task.spec.workspace_cube else ARM_WORKSPACE
+    return GraspSelector(task.selector, task.execution, ik, workspace).select(
         cands.world_poses(obs.camera_pose), cands.widths, cands.confidences, cands.reprojection_errors, points,
         failed, DepthView(obs.depth, obs.intrinsics.K, obs.camera_pose))
 
