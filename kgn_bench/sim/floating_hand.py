@@ -157,11 +157,11 @@ class FloatingHand:
         """``(hand geom, other geom)`` of every contact between the hand and anything else, in MuJoCo's order."""
         d = self.scene.data
         pairs = d.contact.geom[: d.ncon]
-        out = []
-        for g1, g2 in pairs:
-            if self.is_hand[g1] != self.is_hand[g2]:
-                out.append((int(g1), int(g2)) if self.is_hand[g1] else (int(g2), int(g1)))
-        return out
+        first_is_hand = self.is_hand[pairs[:, 0]]
+        mixed = first_is_hand != self.is_hand[pairs[:, 1]]
+        hand = np.where(first_is_hand, pairs[:, 0], pairs[:, 1])[mixed]
+        other = np.where(first_is_hand, pairs[:, 1], pairs[:, 0])[mixed]
+        return [(int(a), int(b)) for a, b in zip(hand, other)]
 
     def touched_objects(self) -> list[int]:
         """Indices of the objects the hand touches, in the order of their first contact."""
