@@ -28,8 +28,8 @@ from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
 __all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "HANDS", "NOISE_MODELS", "PROTOCOLS",
            "RAW_SELECTOR", "SELECTOR_MODES", "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig",
-           "SelectorConfig", "TaskConfig", "apply_override", "load_task", "parse_section", "read_toml", "resolve_task",
-           "task_from_dict"]
+           "SelectorConfig", "TaskConfig", "apply_override", "apply_overrides", "load_task", "parse_section",
+           "read_toml", "resolve_task", "task_from_dict"]
 
 PROTOCOLS = tuple(PROTOCOL_TABLE)
 """The protocol names (``kgn_bench.protocols.PROTOCOLS`` describes each)."""
@@ -508,7 +508,18 @@ def _validate_camera(cam: CameraConfig, where: str) -> None:
 _OVERRIDABLE = {"camera": CameraConfig, "selector": SelectorConfig, "execution": ExecutionConfig}
 
 
-def apply_override(cfg: TaskConfig, key: str, text: str) -> TaskConfig:
+def apply_overrides(cfg: TaskConfig, settings: list[tuple[str, str]]) -> TaskConfig:
+    """``cfg`` with every ``(key, text)`` of ``settings`` applied (``apply_override``), in order, and the result
+    validated once: settings that only make sense together (``execution.hand`` and ``execution.gripper``) may
+    come in any order."""
+    for key, text in settings:
+        cfg = apply_override(cfg, key, text, check=False)
+    if settings:
+        validate(cfg, "settings " + ", ".join(f"{k}={t}" for k, t in settings))
+    return cfg
+
+
+def apply_override(cfg: TaskConfig, key: str, text: str, check: bool = True) -> TaskConfig:
     """``cfg`` with one setting replaced: ``key`` is ``section.name`` of the camera, selector or execution
     section (e.g. ``camera.depth_noise``, ``selector.reprojection_weight``), ``text`` its value as typed on a
     command line (a number, a word, or comma-separated numbers for a vector). Validated like a task file."""
@@ -531,5 +542,6 @@ def apply_override(cfg: TaskConfig, key: str, text: str) -> TaskConfig:
         value = parsed
     value = _coerce(f"setting {key}", name, value, hint)
     out = replace(cfg, **{section: replace(current, **{name: value})})
-    validate(out, f"setting {key}={text}")
+    if check:
+        validate(out, f"setting {key}={text}")
     return out

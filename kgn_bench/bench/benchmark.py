@@ -30,7 +30,16 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from kgn_bench.config import SELECTOR_MODES, ConfigError, TaskConfig, apply_override, load_task, read_toml, resolve_task
+from kgn_bench.config import (
+    SELECTOR_MODES,
+    ConfigError,
+    TaskConfig,
+    apply_override,
+    apply_overrides,
+    load_task,
+    read_toml,
+    resolve_task,
+)
 from kgn_bench.pool import LOCAL, Backend
 
 from .runner import run_many
@@ -118,8 +127,7 @@ def _viewpoints(plan: Path, k: int, raw: dict) -> Viewpoints:
         raise ConfigError(f"{where}: trials must be a positive integer")
     task = _plan_task(plan, str(raw.get("task", "")))
     task = task.with_overrides(trials=trials, seed=None) if trials else task
-    for key, value in settings.items():
-        task = apply_override(task, key, str(value))
+    task = apply_overrides(task, [(key, str(value)) for key, value in settings.items()])
     texts = tuple(str(v) for v in values)
     for v in texts:
         apply_override(task, param, v)  # a bad value fails here, before any trial runs

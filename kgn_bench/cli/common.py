@@ -68,11 +68,12 @@ def writable_file(path: Path, what: str) -> None:
 
 def apply_settings(task, settings: list[str] | None):
     """``task`` with each ``section.name=value`` of ``--set`` applied (``ConfigError`` names a bad one)."""
-    from kgn_bench.config import ConfigError, apply_override
+    from kgn_bench.config import ConfigError, apply_overrides
 
+    pairs = []
     for setting in settings or ():
         key, sep, value = setting.partition("=")
         if not sep:
             raise ConfigError(f"--set {setting!r}: expected section.name=value")
-        task = apply_override(task, key.strip(), value.strip())
-    return task
+        pairs.append((key.strip(), value.strip()))
+    return apply_overrides(task, pairs)
