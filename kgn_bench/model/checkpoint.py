@@ -118,25 +118,34 @@ def verify_weights(path: Path) -> None:
                               "(damaged or replaced file; restore it, or re-export it to write a new card)")
 
 
-def load_checkpoint(path: Path) -> dict[str, Any]:
-    """Read a checkpoint dict; ``CheckpointError`` if the file is missing, corrupt, not ours, or does not
-    match the SHA-256 of its model card (``verify_weights``)."""
+def read_checkpoint(path: Path, fmt: str, version: int, required: tuple[str, ...], what: str = "checkpoint",
+                    missing: str | None = None) -> dict[str, Any]:
+    """The dict a checkpoint file of format ``fmt`` and ``version`` holds, with every key of ``required``;
+    ``CheckpointError`` (one line naming the file, calling it a ``what``) if it is missing (``missing``: that
+    message instead), differs from its model card's SHA-256 (``verify_weights``), is unreadable, of another
+    format or version, or lacks a key."""
     path = Path(path)
     if not path.is_file():
-        raise CheckpointError(f"no checkpoint at {path}")
+        raise CheckpointError(missing or f"no {what} at {path}")
     verify_weights(path)
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many types for a damaged file
-        raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise CheckpointError(f"{path}: not a kgn-bench checkpoint")
-    if data.get("version") != VERSION:
-        raise CheckpointError(f"{path}: checkpoint version {data.get('version')}, expected {VERSION}")
-    for key in ("variant", "network", "input", "model"):
+        raise CheckpointError(f"{path}: not a readable {what} ({type(e).__name__})") from None
+    if not isinstance(data, dict) or data.get("format") != fmt:
+        raise CheckpointError(f"{path}: not a kgn-bench {what}")
+    if data.get("version") != version:
+        raise CheckpointError(f"{path}: {what} version {data.get('version')}, expected {version}")
+    for key in required:
         if key not in data:
-            raise CheckpointError(f"{path}: checkpoint lacks {key!r}")
+            raise CheckpointError(f"{path}: {what} lacks {key!r}")
     return data
+
+
+def load_checkpoint(path: Path) -> dict[str, Any]:
+    """Read a checkpoint dict; ``CheckpointError`` if the file is missing, corrupt, not ours, or does not
+    match the SHA-256 of its model card (``verify_weights``)."""
+    return read_checkpoint(path, FORMAT, VERSION, ("variant", "network", "input", "model"))
 
 
 def _config(cls, values: dict, path: Path):

@@ -23,7 +23,7 @@ from typing import Any
 import torch
 
 from kgn_bench.io import atomic_write, atomic_write_text
-from kgn_bench.model.checkpoint import CheckpointError, file_sha256, verify_weights
+from kgn_bench.model.checkpoint import CheckpointError, file_sha256, read_checkpoint
 from kgn_bench.model.vgn_network import VGNNet
 from kgn_bench.tsdf import VoxelGrid
 
@@ -63,22 +63,8 @@ def save_vgn_checkpoint(path: Path, payload: dict[str, Any]) -> None:
 def load_vgn_checkpoint(path: Path) -> dict[str, Any]:
     """The checkpoint dict at ``path``; ``CheckpointError`` (one line naming the file) if it is missing,
     differs from its model card's SHA-256, is unreadable, of another format or version, or lacks an entry."""
-    path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"no VGN weights at {path} (train them: kgn_bench.training.vgn_train)")
-    verify_weights(path)
-    try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:  # torch raises many types for a damaged file
-        raise CheckpointError(f"{path}: not a readable VGN checkpoint ({type(e).__name__})") from None
-    if not isinstance(data, dict) or data.get("format") != VGN_FORMAT:
-        raise CheckpointError(f"{path}: not a kgn-bench VGN checkpoint")
-    if data.get("version") != VGN_VERSION:
-        raise CheckpointError(f"{path}: VGN checkpoint version {data.get('version')}, expected {VGN_VERSION}")
-    for key in ("model", "grid"):
-        if key not in data:
-            raise CheckpointError(f"{path}: VGN checkpoint lacks {key!r}")
-    return data
+    return read_checkpoint(path, VGN_FORMAT, VGN_VERSION, ("model", "grid"), what="VGN checkpoint",
+                           missing=f"no VGN weights at {path} (train them: kgn_bench.training.vgn_train)")
 
 
 @dataclass

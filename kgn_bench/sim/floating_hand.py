@@ -39,7 +39,7 @@ import numpy as np
 from kgn_bench import giga
 from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix
 from kgn_bench.gripper import GripperGeometry
-from kgn_bench.sim.robot import add_floor, build_gripper
+from kgn_bench.sim.robot import add_floor, build_gripper, descends
 from kgn_bench.sim.scene import Scene
 
 __all__ = ["CONTROL_DT", "PARK_POSITION", "FloatingHand", "FloatingOutcome", "add_floating_cell", "add_floating_hand",
@@ -109,7 +109,7 @@ class FloatingHand:
         self.tcp_site = named(mujoco.mjtObj.mjOBJ_SITE, "gripper/tcp")
         self.pad_geoms = np.array([named(mujoco.mjtObj.mjOBJ_GEOM, f"gripper/{n}_pad")
                                    for n in ("left_finger", "right_finger")])
-        bodies = [b for b in range(m.nbody) if _descends(m, b, carrier)]
+        bodies = [b for b in range(m.nbody) if descends(m, b, carrier)]
         self.geoms = np.flatnonzero(np.isin(m.geom_bodyid, bodies))
         self.is_hand = np.zeros(m.ngeom, dtype=bool)
         self.is_hand[self.geoms] = True
@@ -208,14 +208,6 @@ class FloatingHand:
         for k in range(1, n + 1):
             d.ctrl[self.actuator] = start * max(0.0, 1.0 - 2.0 * k / n)
             self._tick()
-
-
-def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
-    while body > 0:
-        if body == ancestor:
-            return True
-        body = model.body_parentid[body]
-    return False
 
 
 def lift_pose(T_world_grasp: np.ndarray) -> np.ndarray:

@@ -43,6 +43,7 @@ __all__ = [
     "add_workcell",
     "build_gripper",
     "build_robot",
+    "descends",
     "on_table",
     "robot_only_model",
 ]
@@ -189,7 +190,7 @@ class RobotIndex:
             [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, prefix + f"gripper/{n}_pad") for n in FINGER_JOINTS]
         )
         root_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, prefix + "link0")
-        robot_bodies = [b for b in range(model.nbody) if _descends(model, b, root_body)]
+        robot_bodies = [b for b in range(model.nbody) if descends(model, b, root_body)]
         self.geoms = np.flatnonzero(np.isin(model.geom_bodyid, robot_bodies))
         self.arm_limits = np.array([model.jnt_range[j] for j in joints])
 
@@ -198,7 +199,8 @@ class RobotIndex:
         return float(data.qpos[self.finger_qpos].sum())
 
 
-def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+def descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+    """Whether ``body`` is ``ancestor`` or lies below it in the model's body tree."""
     while body > 0:
         if body == ancestor:
             return True
