@@ -19,6 +19,7 @@ __all__ = [
     "REALSENSE",
     "CameraSampler",
     "Intrinsics",
+    "clip_far",
     "convert_camera_frame",
     "look_at",
     "orbit_pose",
@@ -140,3 +141,12 @@ class CameraSampler:
             az = rng.uniform(0.0, 2.0 * np.pi)
             poses.append(orbit_pose(d, el, az))
         return np.stack(poses)
+
+
+def clip_far(depth: np.ndarray, far: float) -> np.ndarray:
+    """The planar depth image (metres, 0 = nothing seen) of a camera whose far clipping plane lies at ``far``:
+    every pixel deeper than ``far`` or seeing nothing reads ``far``, as PyBullet's camera returns its far plane
+    for the background (GIGA's: 2 m). ``far`` 0 leaves ``depth`` as it is."""
+    if far <= 0:
+        return depth
+    return np.where((depth > far) | (depth <= 0), far, depth).astype(depth.dtype)

@@ -62,7 +62,9 @@ class CameraConfig:
     ``d435`` (the default: the D435-like stereo model of ``sim.depth_noise``, 1 = the typical D435) or ``dex``
     (GIGA's model, ``sim.depth_noise.DexNoise``, which has no strength: ``depth_noise`` 1 turns it on).
     ``intrinsics``: the pinhole camera by name (``camera.INTRINSICS``): ``realsense`` (the default, the PS
-    dataset's) or ``giga`` (VGN's and GIGA's 540 px camera)."""
+    dataset's) or ``giga`` (VGN's and GIGA's 540 px camera). ``far`` (m, 0 = off, the default): a far
+    clipping plane: what lies beyond it, and where the camera sees nothing, reads ``far`` (``camera.clip_far``:
+    PyBullet's camera, GIGA's at 2 m), before the depth model."""
 
     distance: Span = 0.8
     elevation_deg: Span = 60.0
@@ -71,6 +73,7 @@ class CameraConfig:
     depth_noise: float = 0.0
     noise_model: str = "d435"
     intrinsics: str = "realsense"
+    far: float = 0.0
 
     def span(self, name: str) -> tuple[float, float]:
         """``(lo, hi)`` of ``distance``, ``elevation_deg`` or ``azimuth_deg`` (lo = hi when fixed)."""
@@ -500,6 +503,8 @@ def _validate_camera(cam: CameraConfig, where: str) -> None:
         raise ConfigError(f"{where}: camera.intrinsics must be one of {', '.join(INTRINSICS)}, got {cam.intrinsics!r}")
     if not 0.0 <= cam.depth_noise <= 10.0:
         raise ConfigError(f"{where}: camera.depth_noise must be in [0, 10], got {cam.depth_noise}")
+    if cam.far != 0.0 and not 0.3 <= cam.far <= 10.0:
+        raise ConfigError(f"{where}: camera.far must be 0 (off) or in [0.3, 10] m, got {cam.far}")
     if cam.noise_model == "dex" and cam.depth_noise not in (0.0, 1.0):
         raise ConfigError(f"{where}: the dex noise model is on or off: camera.depth_noise must be 0 or 1, "
                           f"got {cam.depth_noise}")

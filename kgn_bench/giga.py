@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "APPROACH_SPEED", "CAMERA_AZIMUTH_DEG", "CAMERA_DISTANCE", "CAMERA_ELEVATION_DEG", "CAMERA_TARGET",
+    "APPROACH_SPEED", "CAMERA_AZIMUTH_DEG", "CAMERA_DISTANCE", "CAMERA_ELEVATION_DEG", "CAMERA_FAR", "CAMERA_TARGET",
     "CLOSE_TIME", "LIFT_DISTANCE", "MAX_CONSECUTIVE_FAILURES", "MAX_EXTENT", "MIN_HELD_WIDTH", "OBJECTS_PER_ROUND",
     "PACKED_HALF", "PACKED_SCALE", "PACKED_TRIES", "PILE_DROP_HALF", "PILE_DROP_HEIGHT", "PILE_SCALE",
     "PREGRASP_DISTANCE", "RESOLUTION", "SIDE_GRASP_DEG", "TABLE_HEIGHT", "TRUNCATION_VOXELS", "VOXEL_SIZE",
@@ -61,6 +61,9 @@ CAMERA_ELEVATION_DEG = 30.0
 """Camera elevation above the table plane (their polar angle θ = π/3)."""
 CAMERA_AZIMUTH_DEG = 180.0
 """Camera azimuth in ``camera.orbit_pose`` terms (180° = the −y side; their φ = −π/2)."""
+CAMERA_FAR = 2.0
+"""The camera's far clipping plane (m): the background and anything beyond read 2 m (their near plane, 0.1 m,
+is nearer than anything the camera sees)."""
 CAMERA_TARGET = (0.0, 0.0, WORKSPACE_SIZE / 3.0 - TABLE_HEIGHT)
 """The point (world, m) the camera looks at: the cube's centre line, a third of its height up (5 cm above
 the table)."""

@@ -40,3 +40,12 @@ def test_intrinsics_validation_and_dict():
     assert Intrinsics.from_dict(REALSENSE.to_dict()) == REALSENSE
     with pytest.raises(ValueError):
         Intrinsics(0, 1, 0, 0, 10, 10)
+
+
+def test_a_far_plane_reads_its_distance_beyond_it_and_where_nothing_is_seen():
+    from kgn_bench.camera import clip_far
+
+    depth = np.array([[0.0, 0.5, 1.99], [2.0, 2.5, 3.4]], dtype=np.float32)
+    np.testing.assert_array_equal(clip_far(depth, 2.0), np.array([[2.0, 0.5, 1.99], [2.0, 2.0, 2.0]], np.float32))
+    assert clip_far(depth, 2.0).dtype == np.float32
+    assert clip_far(depth, 0.0) is depth

@@ -44,7 +44,7 @@ def test_the_camera_is_their_side_view():
         assert (cam.distance, cam.elevation_deg, cam.azimuth_deg) == (
             giga.CAMERA_DISTANCE, giga.CAMERA_ELEVATION_DEG, giga.CAMERA_AZIMUTH_DEG)
         assert cam.pinhole == INTRINSICS["giga"] and (cam.pinhole.fx, cam.pinhole.cx) == (540.0, 320.0)
-        assert (cam.noise_model, cam.depth_noise) == ("dex", 1.0)
+        assert (cam.noise_model, cam.depth_noise, cam.far) == ("dex", 1.0, giga.CAMERA_FAR)
 
 
 @pytest.mark.parametrize("kind", ["pile", "packed"])

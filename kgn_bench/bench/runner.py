@@ -104,6 +104,7 @@ def _detector_fingerprint(instance: Any) -> str | None:
 
 IDENTITY_DEFAULTS: dict[tuple[str, str], Any] = {("camera", "noise_model"): "d435",
                                                   ("camera", "intrinsics"): "realsense",
+                                                  ("camera", "far"): 0.0,
                                                   ("execution", "hand"): "arm",
                                                   ("execution", "gripper"): "default"}
 """Task settings added after runs were recorded, left out of a run's identity while they hold the value every

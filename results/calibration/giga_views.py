@@ -18,7 +18,8 @@ for row, kind in enumerate(("pile", "packed")):
     task = load_task(f"tasks/giga_{kind}.toml")
     scene, _, members = _build_scene(task, 3, IK())
     with SceneRenderer(scene) as renderer:
-        obs = _observe(renderer, scene, camera_pose(task, 3), noise_model("dex", 1.0), np.random.default_rng(0))
+        obs = _observe(renderer, scene, camera_pose(task, 3), noise_model("dex", 1.0), np.random.default_rng(0),
+                       task.camera.far)
     axes[row, 0].imshow(obs.rgb)
     axes[row, 0].set_title(f"giga_{kind}, trial 3: {len(members)} objects, side view (540 px)")
     shown = axes[row, 1].imshow(np.where(obs.depth > 0, obs.depth, np.nan), cmap="viridis", vmin=0.4, vmax=0.9)
