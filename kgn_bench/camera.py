@@ -21,6 +21,7 @@ __all__ = [
     "Intrinsics",
     "clip_far",
     "convert_camera_frame",
+    "crop_depth",
     "look_at",
     "orbit_pose",
 ]
@@ -150,3 +151,15 @@ def clip_far(depth: np.ndarray, far: float) -> np.ndarray:
     if far <= 0:
         return depth
     return np.where((depth > far) | (depth <= 0), far, depth).astype(depth.dtype)
+
+
+def crop_depth(depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, lo: np.ndarray, hi: np.ndarray
+               ) -> np.ndarray:
+    """``depth`` (planar, metres, 0 = nothing seen) with every pixel whose back-projected point, in the world
+    frame through ``T_world_cam``, lies outside the box ``lo ≤ p ≤ hi`` (world, m) set to 0: what a pipeline
+    that crops its input to a workspace sees (GIGA crops every method's input to its 30 cm cube)."""
+    from kgn_bench.geometry import backproject, transform_points
+
+    points = transform_points(T_world_cam, backproject(depth, K).reshape(-1, 3)).reshape(*depth.shape, 3)
+    inside = np.all((points >= lo) & (points <= hi), axis=-1)
+    return np.where(inside & (depth > 0), depth, 0.0).astype(depth.dtype)

@@ -28,8 +28,9 @@ class Protocol:
     successes / attempts. ``clutter``: VGN/GIGA's clutter round, the report's hard tier: the round ends as soon
     as an attempt executes nothing, the success rate (GSR) counts executed grasps only, and the records count
     the objects that left the table (``fell_at_setup``, ``fallen``). ``giga``: GIGA's own rounds
-    (``kgn_bench.giga``): objects drawn with replacement and sized GIGA's way, and an object whose origin leaves
-    the workspace cube leaves the round (at set-up it never entered it); reported in a tier of their own."""
+    (``kgn_bench.giga``): objects drawn with replacement and sized GIGA's way, an object whose origin leaves
+    the workspace cube leaves the round (at set-up it never entered it), and every detector sees the depth of
+    the cube only and grasps in it, as GIGA crops every method's input to it; reported in a tier of their own."""
 
     name: str
     one_object: bool = False
@@ -47,7 +48,8 @@ class Protocol:
 
     @property
     def workspace_cube(self) -> bool:
-        """Whether objects outside GIGA's workspace cube leave the round (``giga.in_workspace``)."""
+        """Whether objects outside GIGA's workspace cube leave the round (``giga.in_workspace``), the depth a
+        detector sees is cropped to the cube (``camera.crop_depth``) and the selector takes grasps in it only."""
         return self.giga
 
     @property

@@ -49,3 +49,22 @@ def test_a_far_plane_reads_its_distance_beyond_it_and_where_nothing_is_seen():
     np.testing.assert_array_equal(clip_far(depth, 2.0), np.array([[2.0, 0.5, 1.99], [2.0, 2.0, 2.0]], np.float32))
     assert clip_far(depth, 2.0).dtype == np.float32
     assert clip_far(depth, 0.0) is depth
+
+
+def test_crop_depth_keeps_the_pixels_whose_points_lie_in_the_box():
+    from kgn_bench.camera import crop_depth
+
+    K = REALSENSE.K
+    T = look_at(np.array([0.0, -0.6, 0.6]), np.zeros(3))  # T_world_cam looking at the origin from above
+    depth = np.full((REALSENSE.height, REALSENSE.width), 0.0)
+    rows = np.arange(REALSENSE.height)
+    depth[:, :] = np.linspace(0.5, 1.2, REALSENSE.height)[:, None]
+    depth[0, 0] = 0.0
+    out = crop_depth(depth, K, T, np.array([-0.1, -0.1, -0.5]), np.array([0.1, 0.1, 0.5]))
+    from kgn_bench.geometry import backproject, transform_points
+
+    p = transform_points(T, backproject(depth, K).reshape(-1, 3)).reshape(*depth.shape, 3)
+    inside = np.all(np.abs(p[..., :2]) <= 0.1, axis=-1) & (np.abs(p[..., 2]) <= 0.5) & (depth > 0)
+    assert 0 < inside.sum() < inside.size and rows.size
+    np.testing.assert_array_equal(out > 0, inside)
+    np.testing.assert_array_equal(out[inside], depth[inside])

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kgn_bench.camera import clip_far, orbit_pose
+from kgn_bench.camera import clip_far, crop_depth, orbit_pose
 from kgn_bench.config import TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
 from kgn_bench.geometry import quat_wxyz_from_matrix
@@ -309,7 +309,7 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Hand, detecto
             if not any(on_table(scene, i) for i in range(len(names))):
                 break
             obs = _capture(renderer, scene, cam, noise, np.random.default_rng([task.seed, index, len(attempts)]),
-                           clock, recording, task.camera.far)
+                           clock, recording, task.camera.far, GIGA_WORKSPACE if task.spec.workspace_cube else None)
             if until == len(attempts) + 1:
                 cands = _detect(detector, obs)
                 sel = _select(task, _ik(executor), cands, obs, np.array(failed).reshape(-1, 4, 4))
@@ -335,20 +335,25 @@ def _episode(task: TaskConfig, index: int, scene: Scene, executor: Hand, detecto
 
 
 def _observe(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | DexNoise | None,
-             rng: np.random.Generator, far: float = 0.0) -> Observation:
+             rng: np.random.Generator, far: float = 0.0, crop: tuple[np.ndarray, np.ndarray] | None = None
+             ) -> Observation:
     """The task camera's view ``cam`` (``T_world_cam``), its far plane ``far`` (``camera.clip_far``) and the
-    depth model if any applied, as the detector's observation."""
+    depth model if any applied, then the depth cropped to the box ``crop`` (world; ``camera.crop_depth``) if
+    given, as the detector's observation."""
     view = renderer.render(cam)
     depth = clip_far(view.depth, far)
     depth = depth if noise is None else noise.apply(depth, scene.intrinsics.fx, rng)
+    if crop is not None:
+        depth = crop_depth(depth, scene.intrinsics.K, cam, *crop)
     return Observation(view.rgb, depth, scene.intrinsics, cam)
 
 
 def _capture(renderer: SceneRenderer, scene: Scene, cam: np.ndarray, noise: DepthNoise | DexNoise | None,
-             rng: np.random.Generator, clock: _Clock, recording, far: float = 0.0) -> Observation:
+             rng: np.random.Generator, clock: _Clock, recording, far: float = 0.0,
+             crop: tuple[np.ndarray, np.ndarray] | None = None) -> Observation:
     """``_observe``, timed and recorded."""
     t = time.perf_counter()
-    obs = _observe(renderer, scene, cam, noise, rng, far)
+    obs = _observe(renderer, scene, cam, noise, rng, far, crop)
     clock.add("render", t)
     recording.observation(obs.rgb, obs.depth, scene.intrinsics.K, cam)
     return obs
