@@ -104,7 +104,10 @@ class GraspSet:
 
     def free(self) -> GraspSet:
         """The collision-free subset."""
-        keep = ~self.collides
+        return self.subset(~self.collides)
+
+    def subset(self, keep: np.ndarray) -> GraspSet:
+        """The grasps that ``keep`` (a boolean mask or indices) selects, in that order."""
         return GraspSet(self.poses[keep], self.widths[keep], self.collides[keep])
 
     @staticmethod

@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 
 from kgn_bench.camera import REALSENSE, orbit_pose
+from kgn_bench.config import ExecutionConfig
 from kgn_bench.detectors import DETECTORS, Candidates, Detector, DetectorError, Observation, make_detector
-from kgn_bench.detectors.oracle import TILT_DEG, OracleDetector, tilted
+from kgn_bench.detectors.oracle import PINCH_MARGIN, TILT_DEG, OracleDetector, pinched_extent, tilted
 from kgn_bench.detectors.random import RandomDetector
 from kgn_bench.detectors.vgn import vgn_weights_path
 from kgn_bench.geometry import make_pose, rot_z
-from kgn_bench.gripper import GRIPPER, GripperBox, box_corners
+from kgn_bench.gripper import GRIPPER, PANDA_HAND, GripperBox, box_corners
 from kgn_bench.shapes.base import EVAL_DENSITY
 from kgn_bench.shapes.primitives import Cuboid, Sphere
 from kgn_bench.sim.collision import proxy_hits_table
@@ -168,6 +169,36 @@ def test_oracle_returns_the_free_ground_truth_grasps(cell):
     np.testing.assert_allclose(cands.confidences, 0.5 * (1.0 - world[:, 2, 0]) - 2.0 * off)
     assert world[np.argmax(cands.confidences), 2, 0] == pytest.approx(-1.0)
     assert np.all(np.isnan(cands.reprojection_errors)) and cands.keypoints is None
+
+
+def test_pinched_extent_measures_what_the_jaws_close_on():
+    """A 5 × 6 × 7 cm box: jaws across x pinch 5 cm, across y 6 cm, also with only the pads' end on it; jaws
+    above its top or beside it pinch nothing."""
+    mesh = BOX.mesh()
+
+    def frame(approach, closing, t):  # the grasp frame: x approach, z closing
+        a, c = np.asarray(approach, float), np.asarray(closing, float)
+        return make_pose(np.stack([a, np.cross(c, a), c], axis=1), t)
+
+    poses = np.stack([frame((0, 0, -1), (1, 0, 0), (0, 0, 0.0)), frame((0, 0, -1), (0, 1, 0), (0, 0, 0.0)),
+                      frame((0, 0, -1), (1, 0, 0), (0, 0, 0.02)),
+                      frame((0, 0, -1), (1, 0, 0), (0, 0, 0.04)), frame((0, 0, -1), (1, 0, 0), (0.0, 0.2, 0.0))])
+    extent = pinched_extent(mesh, poses, np.full(5, 0.08), finger_length=0.05)
+    np.testing.assert_allclose(extent[:2], [0.05, 0.06], atol=1e-9)  # Cuboid((0.05, 0.06, 0.07))
+    assert extent[2] == pytest.approx(0.05)  # fingertips 1.5 cm below the top (3.5 cm): the pads' end reaches it
+    assert extent[3] == extent[4] == 0.0  # fingertips above the top; beside the box
+    assert len(pinched_extent(mesh, np.zeros((0, 4, 4)), np.zeros(0), 0.05)) == 0
+
+
+def test_oracle_takes_the_floating_hands_distances_gripper_and_held_floor():
+    oracle = OracleDetector()
+    arm = ExecutionConfig()
+    oracle.configure(arm)
+    assert (oracle.approach, oracle.depth, oracle.gripper, oracle.min_pinch) == (
+        arm.pregrasp_distance, arm.grasp_depth, GRIPPER, 0.0)
+    oracle.configure(ExecutionConfig(hand="floating", gripper="panda"))
+    assert (oracle.approach, oracle.depth, oracle.gripper) == (0.05, 0.0, PANDA_HAND)
+    assert oracle.min_pinch == pytest.approx(0.008 + PINCH_MARGIN)
 
 
 def test_oracle_sees_nothing_when_the_table_is_empty(cell):

@@ -39,6 +39,8 @@ def test_graspset_checks_shapes_and_filters():
     T = make_pose(t=[0, 0, 1])
     assert g.transformed(T).poses[0, 2, 3] == 1.0
     assert len(GraspSet.concatenate([g, g])) == 6
+    np.testing.assert_array_equal(g.subset(g.widths > 0.015).widths, [0.02, 0.03])
+    np.testing.assert_array_equal(g.subset(np.array([2, 0])).collides, [True, True])
 
 
 def test_grasp_rotation_error_respects_the_180_degree_symmetry():

@@ -16,13 +16,14 @@ from kgn_bench.data.vgn_generate import (
     grasp_frames,
     grasp_views,
     label_grasps,
+    snap_origins,
     to_voxels,
     widest_run_centre,
 )
 from kgn_bench.geometry import make_pose
 from kgn_bench.gripper import PANDA_HAND
 from kgn_bench.shapes.primitives import Cuboid
-from kgn_bench.sim.floating_hand import FloatingHand, add_floating_cell
+from kgn_bench.sim.floating_hand import FloatingHand, add_floating_cell, execute_grasp, precheck_grasp
 from kgn_bench.sim.placement import settle
 from kgn_bench.sim.scene import Scene, SceneObject
 
@@ -74,6 +75,46 @@ def test_labels_hold_across_the_narrow_side_only():
     np.testing.assert_allclose(np.linalg.norm(quats, axis=1), 1.0)
 
 
+def test_the_precheck_rejects_only_grasps_that_execution_fails():
+    """The standing box of the test above: from above 3 cm deep closing across 4 cm passes and holds; across
+    the 10 cm side the fingers land on the box on the way in; beside the box the jaws close on air; with
+    the pre-grasp inside the box the hand starts in collision. Each rejected grasp also fails when executed, and
+    labelling gives the same labels with and without the pre-check."""
+    box = Cuboid((0.04, 0.10, 0.08))
+    scene = Scene([SceneObject(box, (0.5, 0.5, 0.5), make_pose(t=np.array([0.0, 0.0, 0.041])))],
+                  extend=lambda root: add_floating_cell(root, PANDA_HAND))
+    hand = FloatingHand(scene, PANDA_HAND)
+    hand.park()
+    settle(scene)
+    z = scene.object_pose(0)[2, 3] + 0.04
+    frames = grasp_frames(np.array([[0.0, 0.0, z], [0.09, 0.0, z]]), np.array([[0.0, 0.0, 1.0]] * 2),
+                          np.array([0.03, 0.03]), 6)
+    inside = frames[0, 0].copy()
+    inside[2, 3] -= 0.09  # the pre-grasp (5 cm back, up) still inside the box
+    cases = {"pass": frames[0, 0], "approach": frames[0, 3], "empty": frames[1, 0], "pre-grasp": inside}
+    before = scene.data.qpos.copy()
+    for expected, T in cases.items():
+        assert (precheck_grasp(hand, T) or "pass") == expected
+        np.testing.assert_array_equal(scene.data.qpos[:7], before[:7])  # the object never moved
+        outcome = execute_grasp(hand, T, allow_contact=False)
+        assert (outcome.reason is None) == (expected == "pass"), expected
+        scene.data.qpos[:] = before
+        scene.data.qvel[:] = 0.0
+        scene.forward()
+    a, b = label_grasps(scene, hand, frames, precheck=True), label_grasps(scene, hand, frames, precheck=False)
+    np.testing.assert_array_equal(a.holds, b.holds)
+    assert a.holds[0, 0] and not a.holds[1].any()
+
+
+def test_snapped_origins_lie_on_the_grid_lattice():
+    frames = grasp_frames(np.array([[0.0123, -0.0456, 0.0311]]), np.array([[0.3, 0.1, 0.9]]), np.array([0.02]), 3)
+    snapped = snap_origins(frames)
+    voxels = (snapped[..., :3, 3] - giga.WORKSPACE_ORIGIN) / giga.VOXEL_SIZE
+    np.testing.assert_allclose(voxels, np.rint(voxels), atol=1e-9)
+    assert np.abs(snapped[..., :3, 3] - frames[..., :3, 3]).max() <= giga.VOXEL_SIZE / 2 + 1e-12
+    np.testing.assert_array_equal(snapped[..., :3, :3], frames[..., :3, :3])
+
+
 def test_grasp_views_look_down_at_the_workspace():
     views = grasp_views(np.random.default_rng(3))
     assert 1 <= len(views) <= 6
@@ -90,6 +131,7 @@ def test_a_scene_is_reproducible_and_a_dataset_resumes_and_grows(tmp_path):
     assert 0.0 < a["tsdf"].max() < 1.0 and len(a["labels"]) > 0
     grid = a["voxels"] * giga.VOXEL_SIZE
     assert np.all((grid >= 0.02 - 1e-9) & (grid <= 0.28 + 1e-9))
+    np.testing.assert_allclose(a["voxels"], np.rint(a["voxels"]), atol=1e-4)  # snapped to the lattice
     out = tmp_path / "vgn"
     first = generate_vgn_dataset(config, out, progress=False)
     assert first["scenes"] == 1 and read_manifest(out).sha256

@@ -40,3 +40,16 @@ def test_it_learns_which_voxel_holds():
         opt.step()
     q = net(x).quality[0, 0].detach()
     assert q[5, 5, 2] > 0.8 and q[12, 12, 12] < 0.2
+
+
+def test_channels_last_gives_the_same_maps_in_the_default_layout():
+    torch.manual_seed(0)
+    net = VGNNet()
+    x = torch.rand(1, 1, 16, 16, 16)
+    ref = net(x)
+    out = net.use_channels_last()(x)
+    assert net.encoder[0].weight.is_contiguous(memory_format=torch.channels_last_3d)
+    for a, b in ((ref.quality, out.quality), (ref.rotation, out.rotation), (ref.width, out.width)):
+        assert b.is_contiguous()
+        torch.testing.assert_close(a, b, atol=1e-5, rtol=1e-4)
+    assert net.use_channels_last(False).encoder[0].weight.is_contiguous()

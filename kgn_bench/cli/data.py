@@ -111,7 +111,7 @@ def _add_vgn(dsub) -> None:
     vgn.add_argument("--scenes", type=int_at_least(1), default=1000,
                      help="number of scenes, half piles, half packed (default 1000; a finished dataset grows when "
                           "rerun with more)")
-    vgn.add_argument("--grasps", type=int_at_least(1), default=120, help="grasp positions per scene (default 120)")
+    vgn.add_argument("--grasps", type=int_at_least(1), default=240, help="grasp positions per scene (default 240)")
     vgn.add_argument("--seed", type=int_at_least(0), default=0, help="dataset seed (default 0)")
     vgn.add_argument("--objects", nargs="+", metavar="NAME", default=list(VGN_OBJECTS),
                      help="object types, imported objects or sets to draw from (default: primitives household); "

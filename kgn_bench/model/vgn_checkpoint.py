@@ -46,7 +46,7 @@ VGN_VERSION = 1
 def vgn_payload(net: VGNNet, grid: VoxelGrid) -> dict[str, Any]:
     """The entries that rebuild a network: ``model`` (state dict on the CPU), ``grid`` and ``parameters``."""
     return {
-        "model": {k: v.detach().cpu() for k, v in net.state_dict().items()},
+        "model": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
         "grid": {"size": grid.size, "resolution": grid.resolution, "truncation_voxels": grid.truncation_voxels},
         "parameters": sum(p.numel() for p in net.parameters()),
     }
@@ -77,8 +77,8 @@ class LoadedVGN:
 
 
 def load_vgn_model(path: Path) -> LoadedVGN:
-    """Build ``VGNNet`` from the checkpoint at ``path`` (on the CPU, eval mode); ``CheckpointError`` if the file
-    is refused (``load_vgn_checkpoint``) or its weights or grid do not fit."""
+    """Build ``VGNNet`` from the checkpoint at ``path`` (on the CPU, eval mode, channels-last 3D);
+    ``CheckpointError`` if the file is refused (``load_vgn_checkpoint``) or its weights or grid do not fit."""
     data = load_vgn_checkpoint(path)
     try:
         g = data["grid"]
@@ -93,7 +93,7 @@ def load_vgn_model(path: Path) -> LoadedVGN:
     except (RuntimeError, KeyError, TypeError, AttributeError) as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise CheckpointError(f"{path}: weights do not fit VGN ({first})") from None
-    net.eval()
+    net.eval().use_channels_last()
     meta = {k: v for k, v in data.items() if k not in ("model", "optimizer", "torch_rng")}
     return LoadedVGN(net, grid, meta)
 

