@@ -21,7 +21,7 @@ hand's work cell (``sim.floating_hand``); objects that leave the workspace cube 
   exactly as the benchmark executes GIGA's protocol, except that any contact on the way in fails it (VGN's
   data generation: a grasp must be reachable without touching anything). With ``precheck`` (the default) the
   kinematic test ``sim.floating_hand.precheck_grasp`` first rejects the grasps that execution would fail at
-  the pre-grasp, on the way in or by closing on nothing (93-98 % of them, each ~10× cheaper than an
+  the pre-grasp, on the way in or by closing on nothing (about 96 % of them, each ~7× cheaper than an
   execution); only the rest run in physics. A position is positive when some yaw holds; its rotation is the
   yaw in the middle of the longest run of holding yaws (circularly: yaw π is yaw 0) and its width the opening
   measured there. A negative keeps yaw 0 and the hand's maximum opening.

@@ -265,7 +265,7 @@ def precheck_grasp(hand: FloatingHand, T_world_grasp: np.ndarray) -> str | None:
     fully open down to the held-width floor touch nothing: they would close on nothing, a ``missed``), or None
     (execute it). Nothing moves: the hand is teleported, contacts recomputed, and parked after. A grasp it
     rejects is one execution fails except where the dynamics differ from the kinematics (the hand lagging its
-    target, a finger's sag); ``results/calibration`` measures how often (0.2 % of rejections)."""
+    target, a finger's sag); ``results/calibration`` measures how often (0.12 % of rejections)."""
     pre = T_world_grasp @ make_pose(t=np.array([-giga.PREGRASP_DISTANCE, 0.0, 0.0]))
     try:
         hand.teleport(pre)
