@@ -53,3 +53,18 @@ def test_channels_last_gives_the_same_maps_in_the_default_layout():
         assert b.is_contiguous()
         torch.testing.assert_close(a, b, atol=1e-5, rtol=1e-4)
     assert net.use_channels_last(False).encoder[0].weight.is_contiguous()
+
+
+def test_the_stacked_heads_compute_each_head_as_its_own_convolution():
+    torch.manual_seed(1)
+    net = VGNNet()
+    x = torch.rand(1, 1, 16, 16, 16)
+    out = net(x)
+    h = x
+    for conv in net.encoder:
+        h = torch.relu(conv(h))
+    for conv in net.decoder:
+        h = torch.nn.functional.interpolate(torch.relu(conv(h)), scale_factor=2, mode="nearest")
+    torch.testing.assert_close(out.quality, torch.sigmoid(net.quality(h)))
+    torch.testing.assert_close(out.rotation, torch.nn.functional.normalize(net.rotation(h), dim=1))
+    torch.testing.assert_close(out.width, net.width(h))

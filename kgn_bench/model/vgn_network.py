@@ -11,7 +11,10 @@ of the same grid:
 
 Layers (Breyer et al., CoRL 2020): encoder conv 1→16 k5 s2, 16→32 k3 s2, 32→64 k3 s2 (R → R/8), decoder
 conv 64→64 k3, ×2 nearest upsampling, conv 64→32 k3, ×2, conv 32→16 k5, ×2, every conv followed by a ReLU;
-three k5 heads on the 16-channel map. No skip connections, no normalisation: 313,238 parameters.
+three k5 heads on the 16-channel map. No skip connections, no normalisation: 313,238 parameters. The three
+heads keep their own parameters (VGN's layout) but run as one 16→6 convolution of their stacked kernels: the
+same maps, and on the CPU a third of the time of three convolutions over the full-resolution grid, which is
+where most of the network's time goes.
 """
 
 from __future__ import annotations
@@ -66,8 +69,12 @@ class VGNNet(nn.Module):
             x = F.relu(conv(x))
         for conv in self.decoder:
             x = F.interpolate(F.relu(conv(x)), scale_factor=2, mode="nearest")
+        heads = (self.quality, self.rotation, self.width)
+        weight = torch.cat([h.weight for h in heads])
+        bias = torch.cat([h.bias for h in heads])
+        y = F.conv3d(x, weight, bias, padding=self.quality.padding)
         return VGNOutput(
-            quality=torch.sigmoid(self.quality(x)).contiguous(),
-            rotation=F.normalize(self.rotation(x), dim=1).contiguous(),
-            width=self.width(x).contiguous(),
+            quality=torch.sigmoid(y[:, :1]).contiguous(),
+            rotation=F.normalize(y[:, 1:5], dim=1).contiguous(),
+            width=y[:, 5:].contiguous(),
         )
