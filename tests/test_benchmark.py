@@ -41,6 +41,8 @@ PLAN = "[benchmark]\ntasks = ['ci_oracle']\ndetectors = ['oracle']"
     ("[benchmark]\ntasks = ['nope']\ndetectors = ['oracle']", "no such task file"),
     ("[benchmark]\ntasks = ['ci_oracle']\ndetectors = ['oracle']\nspeed = 2", "unknown key 'speed'"),
     ("[bench]\ntasks = ['ci_oracle']", "exactly one [benchmark] table"),
+    (PLAN + "\nseeds = [1, 1]", "seeds must be a list of distinct integers"),
+    (PLAN + "\nseeds = [-1]", "seeds must be a list of distinct integers"),
     (PLAN + VIEW + "param = 'selector.level_deg'\nvalues = [0]", "param must be a camera setting"),
     (PLAN + VIEW + "param = 'camera.elevation_deg'\nvalues = []", "values must be a non-empty list"),
     (PLAN + VIEW + "param = 'camera.elevation_deg'\nvalues = [45]\nspin = 1", "unknown key 'spin'"),
@@ -104,6 +106,21 @@ def test_a_plans_viewpoint_study_runs_for_every_detector_and_is_reported(tmp_pat
     assert (runs / "viewpoints_tiny_elevation_deg.png").read_bytes() == (study / "sweep.png").read_bytes()
     payload = json.loads((runs / "benchmark.json").read_text())["viewpoints"]["tiny_elevation_deg"]
     assert payload["values"] == ["45", "90"] and set(payload["detectors"]) == {"random", "oracle"}
+
+
+def test_a_plan_with_seeds_runs_each_seed_and_reports_one_cell(tmp_path, capsys):
+    task = (TASKS / "ci_oracle.toml").read_text().replace('name = "ci_oracle"', 'name = "tiny"')
+    task = task.split("[objects]")[0] + '[objects]\nset = ["sphere", "cuboid"]\n'
+    (tmp_path / "tiny.toml").write_text(task.replace("trials = ", "trials = 1 #"))
+    plan = tmp_path / "plan.toml"
+    plan.write_text("[benchmark]\ntasks = ['tiny']\ndetectors = ['oracle']\nseeds = [3, 4]\n")
+    assert load_plan(plan).seeds == (3, 4)
+    assert main(["benchmark", str(plan), "--runs", str(tmp_path / "runs"), "--workers", "1", "--quiet"]) == 0
+    for seed in (3, 4):
+        run = json.loads((tmp_path / "runs" / "tiny" / "oracle" / f"seed{seed}" / "run.json").read_text())
+        assert run["config"]["seed"] == seed
+    out = capsys.readouterr().out
+    assert out.count("over 2 seeds") >= 1
 
 
 def test_benchmark_rejects_a_bad_setting_before_running(tmp_path, capsys):

@@ -79,6 +79,28 @@ def test_bad_run_folders_are_named(tmp_path):
         build_report([])
 
 
+def test_runs_of_several_seeds_are_one_cell_pooled_with_the_mean_and_std_of_the_seeds(tmp_path):
+    runs = []
+    for seed, (k, n) in enumerate([(60, 100), (70, 100), (80, 100)]):
+        f = _run(tmp_path / f"seed{seed}", "single_object", "kgnv2", (k, n), failures={"missed": n - k},
+                 per_object={"cube": (k // 2, n // 2)})
+        s = json.loads((f / "summary.json").read_text())
+        s["seed"] = seed
+        (f / "summary.json").write_text(json.dumps(s))
+        runs.append(f)
+    text, payload = build_report(load_summaries(runs))
+    cell = payload["detectors"]["kgnv2"]["single, primitives"]
+    assert (cell["k"], cell["n"]) == (210, 300)  # pooled
+    assert cell["per_seed"] == [0.6, 0.7, 0.8]
+    assert cell["mean"] == pytest.approx(0.7) and cell["std"] == pytest.approx(0.0816497, abs=1e-6)  # ddof = 0
+    assert "70.0 ± 8.2 over 3 seeds" in text
+    assert payload["failures"]["kgnv2"]["missed"] == 90
+    assert payload["per_object"]["single_object"]["kgnv2"]["cube"]["n"] == 150
+    twin = _run(tmp_path / "twin", "single_object", "kgnv2", (1, 2))  # seed 0 again
+    with pytest.raises(ReportError, match="same seed"):
+        build_report(load_summaries([*runs, twin]))
+
+
 def _clutter(folder, task, protocol, detector, success, clear, fallen=0, fell_at_setup=0):
     """A run folder of a clutter protocol (``pile``, ``giga_pile``, ...): GSR, DR and the objects that left."""
     f = _run(folder, task, detector, success, clear=clear)
@@ -183,7 +205,7 @@ def test_gigas_protocol_is_a_third_table_beside_table_i_and_leaves_the_others_al
     note = " ".join(section)
     assert "antipodal giga_pile: 0 while building, 1 during the rounds" in note
     assert "vgn giga_packed: 3 while building, 0 during the rounds" in note
-    for differs in ("MuJoCo instead of PyBullet", "43 real test objects", "one seed instead of five",
+    for differs in ("MuJoCo instead of PyBullet", "43 real test objects", "mean ± population std",
                     "GPD ↔ `antipodal`", "VGN ↔ `vgn`"):
         assert differs in note
     assert text.index("## Hard tier") < text.index("## GIGA's protocol") < text.index("## Failure reasons")

@@ -18,6 +18,13 @@ A plan may add viewpoint studies, each a camera sweep (``bench.sweep``) of one t
 run into ``RUNS/viewpoints/<name>`` (``name``: ``<task>_<param's last part>`` unless given), on the same pool as
 the tasks; restricting the plan to some tasks keeps the studies of those tasks only.
 
+A plan may repeat every (task, detector) over several seeds, as GIGA reports 5 seeds of 100 rounds::
+
+    seeds = [0, 1, 2, 3, 4]               # optional: each task's own seed when absent
+
+Each seed's run then goes to ``RUNS/<task>/<detector>/seed<k>`` and the report merges them into one cell
+(``report.merge_seeds``: the pooled rate with its Wilson interval, and the per-seed mean ± std).
+
 A plan is named by its path or its bundled name (``benchmark``); its task names are looked up beside the
 plan file, then among the bundled tasks. A task named ``name@mode`` is task ``name`` with ``selector.mode`` set
 to ``mode`` (``raw`` or ``assisted``), run and reported as ``name_mode``: one task file gives both the
@@ -68,6 +75,8 @@ class BenchmarkPlan:
     tasks: tuple[TaskConfig, ...]
     detectors: tuple[str, ...]
     viewpoints: tuple[Viewpoints, ...] = ()
+    seeds: tuple[int, ...] = ()
+    """The seeds every (task, detector) runs with (module docstring); empty: each task's own."""
 
 
 def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] | None = None) -> BenchmarkPlan:
@@ -79,10 +88,14 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
     section = raw.get("benchmark")
     if not isinstance(section, dict) or set(raw) != {"benchmark"}:
         raise ConfigError(f"{path}: a plan has exactly one [benchmark] table")
-    unknown = set(section) - {"tasks", "detectors", "viewpoints"}
+    unknown = set(section) - {"tasks", "detectors", "viewpoints", "seeds"}
     if unknown:
         raise ConfigError(f"{path}: [benchmark] unknown key {sorted(unknown)[0]!r} (known: tasks, detectors, "
-                          "viewpoints)")
+                          "viewpoints, seeds)")
+    seeds = section.get("seeds", [])
+    if not isinstance(seeds, list) or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0
+                                              for k in seeds) or len(set(seeds)) < len(seeds):
+        raise ConfigError(f"{path}: [benchmark] seeds must be a list of distinct integers ≥ 0")
     names = section.get("tasks")
     dets = section.get("detectors")
     for key, value in (("tasks", names), ("detectors", dets)):
@@ -106,7 +119,7 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
         raise ConfigError(f"{path}: two viewpoint studies have the same name; give one a name = ...")
     names = [n for n in names if not tasks or n in tasks]
     dets = [d for d in dets if not detectors or d in detectors]
-    return BenchmarkPlan(tuple(_plan_task(path, n) for n in names), tuple(dets), viewpoints)
+    return BenchmarkPlan(tuple(_plan_task(path, n) for n in names), tuple(dets), viewpoints, tuple(seeds))
 
 
 def _viewpoints(plan: Path, k: int, raw: dict) -> Viewpoints:
@@ -154,8 +167,13 @@ def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool =
     detector into ``runs``/viewpoints/name (with its sweep table and plot, ``sweep.DetectorSweep``), on
     ``backend``. All of these runs go to one pool (``runner.run_many``: the same records as one run after
     another, no idle workers between runs, every check made before anything is written). Returns the task
-    runs' folders and, per study name, (study, points per detector)."""
-    specs = [(task, det, Path(runs) / task.name / det) for task in plan.tasks for det in plan.detectors]
+    runs' folders and, per study name, (study, points per detector). With ``plan.seeds`` every (task,
+    detector) runs once per seed into ``runs``/task/detector/seed<k>."""
+    if plan.seeds:
+        specs = [(task.with_overrides(seed=k), det, Path(runs) / task.name / det / f"seed{k}")
+                 for task in plan.tasks for det in plan.detectors for k in plan.seeds]
+    else:
+        specs = [(task, det, Path(runs) / task.name / det) for task in plan.tasks for det in plan.detectors]
     sweeps = [(v, DetectorSweep(v.task, plan.detectors, v.param, v.values, Path(runs) / "viewpoints" / v.name))
               for v in plan.viewpoints]
     sweep_runs = [sweep.runs() for _, sweep in sweeps]

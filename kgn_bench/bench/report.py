@@ -30,7 +30,7 @@ from kgn_bench.protocols import PROTOCOLS, protocol
 
 from .attempt import FAILURE_REASONS
 from .html_report import write_html
-from .stats import Rate, per_object_meaning
+from .stats import Rate, SeededRate, per_object_meaning, rate_from_dict
 
 __all__ = ["COLUMNS", "DETECTOR_ORDER", "GIGA", "GIGA_FAMILY", "GIGA_PROTOCOLS", "GIGA_TABLE_I", "HARD_PROTOCOLS",
            "PAPER", "Column", "ReportError", "build_report", "environment_warnings", "load_summaries"]
@@ -90,8 +90,9 @@ GIGA_CALIBRATION_NOTE = (
     "These rounds follow GIGA's protocol (a floating Panda hand, GIGA's camera and depth noise, placement and "
     "object sizes), so Table I is a like-for-like reference up to what still differs: MuJoCo instead of PyBullet "
     "(contact model, friction); our 43 real test objects (pybullet_data's procedural random_urdfs plus duck, mug "
-    "and teddy) instead of GIGA's 40 test meshes, which are not available offline; the rounds of one seed instead "
-    "of five (ours: a Wilson 95 % interval; the paper's: ± std over its seeds); and the methods correspond by "
+    "and teddy) instead of GIGA's 40 test meshes, which are not available offline; ours give the pooled rate "
+    "with its Wilson 95 % interval, and with several seeds also the mean ± population std over them, GIGA's "
+    "figure; and the methods correspond by "
     "family only: GPD ↔ `antipodal` (a GPD-style sampler, not GPD itself), VGN ↔ `vgn` (VGN's network trained "
     "on this simulator's data); SHAF, GIGA-Aff, GIGA and GIGA (HR) have no counterpart here."
 )
@@ -225,14 +226,49 @@ def _tier(summary: dict[str, Any]) -> str:
 
 
 def _cells(summaries: list[dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
-    """The runs by (detector, task); ``ReportError`` for two runs of one cell."""
-    cells: dict[tuple[str, str], dict[str, Any]] = {}
+    """The runs by (detector, task), the runs of several seeds of one cell merged (``merge_seeds``);
+    ``ReportError`` for two runs of one cell with the same seed."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for s in summaries:
-        key = (s["detector"], s["task"])
-        if key in cells:
-            raise ReportError(f"two runs of {s['task']} with {s['detector']}: {cells[key]['run']} and {s['run']}")
-        cells[key] = s
-    return cells
+        groups.setdefault((s["detector"], s["task"]), []).append(s)
+    return {key: runs[0] if len(runs) == 1 else merge_seeds(runs) for key, runs in groups.items()}
+
+
+def merge_seeds(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """One summary for the runs of one (detector, task) with different seeds (GIGA reports 5 seeds of 100
+    rounds): every rate a ``SeededRate`` (successes and attempts summed, and each seed's rate), failure
+    counts, attempts, trials and the objects that left summed, ``seeds`` the seeds in order and ``run`` the
+    folders joined. ``ReportError`` when two runs share a seed."""
+    runs = sorted(runs, key=lambda r: r.get("seed", 0))
+    seeds = [r.get("seed") for r in runs]
+    if len(set(seeds)) < len(seeds):
+        first = runs[0]
+        raise ReportError(f"two runs of {first['task']} with {first['detector']} and the same seed: "
+                          + ", ".join(r["run"] for r in runs))
+    out = dict(runs[0])
+    rates = {}
+    for name in runs[0]["rates"]:
+        parts = [Rate.from_dict(r["rates"][name]) for r in runs if name in r["rates"]]
+        rates[name] = SeededRate(sum(p.k for p in parts), sum(p.n for p in parts),
+                                 tuple(p.value for p in parts)).to_dict()
+    objects: dict[str, Rate] = {}
+    for r in runs:
+        for name, d in r.get("per_object", {}).items():
+            before = objects.get(name, Rate(0, 0))
+            objects[name] = Rate(before.k + int(d["k"]), before.n + int(d["n"]))
+    out.update(rates=rates, seeds=seeds, run=", ".join(r["run"] for r in runs),
+               per_object={name: rate.to_dict() for name, rate in objects.items()},
+               **{key: _sum_counts([r.get(key, {}) for r in runs]) for key in ("failures", "selector_rejections")},
+               **{key: sum(r.get(key, 0) for r in runs) for key in ("attempts", "trials", "fell_at_setup", "fallen")})
+    return out
+
+
+def _sum_counts(counts: list[dict[str, int]]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for c in counts:
+        for key, value in c.items():
+            out[key] = out.get(key, 0) + int(value)
+    return out
 
 
 @dataclass(frozen=True)
@@ -262,7 +298,7 @@ class _Layout:
     def rate(self, det: str, col: Column) -> Rate | None:
         """The rate of column ``col`` of ``det``'s run (None if there is no such run or rate)."""
         s = self.cells.get((det, col.task))
-        return Rate.from_dict(s["rates"][col.rate]) if s and col.rate in s["rates"] else None
+        return rate_from_dict(s["rates"][col.rate]) if s and col.rate in s["rates"] else None
 
 
 def _layout(summaries: list[dict[str, Any]]) -> _Layout:
@@ -362,9 +398,11 @@ def build_report(summaries: list[dict[str, Any]], out: Path | None = None,
     """Markdown and JSON of the report; with ``out`` also writes out/benchmark.{md,json,png,html}. ``viewpoints``
     (``benchmark.run_plan``: name → (study, sweep points per detector)) adds the viewpoint study: its
     tables, and its plots copied to out/viewpoints_<name>.png. Runs go to the main table, the hard tier or GIGA's
-    protocol (calibration) by their protocol's ``report_tier``."""
+    protocol (calibration) by their protocol's ``report_tier``. The runs of one (detector, task) with different
+    seeds are reported as one (``merge_seeds``)."""
     if not summaries:
         raise ReportError("no runs to report")
+    summaries = list(_cells(summaries).values())
     layout = _layout(summaries)
     lines = _main_lines(layout)
     if layout.hard:

@@ -11,6 +11,7 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from scipy.stats import binomtest
 
 from kgn_bench.protocols import Protocol, protocol
@@ -19,7 +20,8 @@ from .attempt import FAILURE_REASONS, NOT_EXECUTED
 from .records import TrialRecord
 from .selector import REJECTIONS
 
-__all__ = ["Rate", "per_object_meaning", "summarise", "summary_markdown", "wilson_interval"]
+__all__ = ["Rate", "SeededRate", "per_object_meaning", "rate_from_dict", "summarise", "summary_markdown",
+           "wilson_interval"]
 
 def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
     """Wilson score interval of a binomial proportion (scipy); (0, 1) when n = 0."""
@@ -56,6 +58,37 @@ class Rate:
     def __str__(self) -> str:
         lo, hi = self.interval
         return f"{100 * self.value:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] ({self.k}/{self.n})"
+
+
+@dataclass(frozen=True)
+class SeededRate(Rate):
+    """The rates of several seeds' runs of one cell: ``k`` and ``n`` summed over them (the pooled rate and its
+    Wilson interval) and ``per_seed``, each seed's own rate, for GIGA's figure: their mean and population
+    standard deviation (numpy's default, ddof = 0, as GIGA's evaluation script computes it)."""
+
+    per_seed: tuple[float, ...] = ()
+
+    @property
+    def mean_std(self) -> tuple[float, float]:
+        """Mean and population standard deviation of the per-seed rates."""
+        v = np.asarray(self.per_seed, dtype=float)
+        return float(v.mean()), float(v.std())
+
+    def to_dict(self) -> dict[str, Any]:
+        mean, std = self.mean_std
+        return {**super().to_dict(), "per_seed": [round(v, 6) for v in self.per_seed], "mean": round(mean, 6),
+                "std": round(std, 6)}
+
+    def __str__(self) -> str:
+        mean, std = self.mean_std
+        return f"{super().__str__()}; {100 * mean:.1f} ± {100 * std:.1f} over {len(self.per_seed)} seeds"
+
+
+def rate_from_dict(d: dict[str, Any]) -> Rate:
+    """A ``Rate``, or a ``SeededRate`` where ``d`` carries ``per_seed`` (``to_dict``'s inverse)."""
+    if "per_seed" in d:
+        return SeededRate(int(d["k"]), int(d["n"]), tuple(float(v) for v in d["per_seed"]))
+    return Rate.from_dict(d)
 
 
 def per_object_meaning(name: str | None) -> str:
