@@ -188,6 +188,7 @@ def test_pinched_extent_measures_what_the_jaws_close_on():
     assert extent[2] == pytest.approx(0.05)  # fingertips 1.5 cm below the top (3.5 cm): the pads' end reaches it
     assert extent[3] == extent[4] == 0.0  # fingertips above the top; beside the box
     assert len(pinched_extent(mesh, np.zeros((0, 4, 4)), np.zeros(0), 0.05)) == 0
+    assert pinched_extent(mesh, poses[4:], np.full(1, 0.08), 0.05)[0] == 0.0  # no ray hits at all
 
 
 def test_oracle_takes_the_floating_hands_distances_gripper_and_held_floor():

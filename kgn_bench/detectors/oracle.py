@@ -60,8 +60,10 @@ def pinched_extent(mesh: trimesh.Trimesh, poses: np.ndarray, widths: np.ndarray,
     dirs = np.concatenate([np.broadcast_to(z[:, None], centres.shape), np.broadcast_to(-z[:, None], centres.shape)])
     locations, index, _ = trimesh.ray.ray_triangle.RayMeshIntersector(mesh).intersects_location(
         origins.reshape(-1, 3), dirs.reshape(-1, 3), multiple_hits=False)
-    dist = np.full(len(origins.reshape(-1, 3)), np.inf)
-    dist[index] = np.linalg.norm(locations - origins.reshape(-1, 3)[index], axis=1)
+    rays = origins.reshape(-1, 3)
+    dist = np.full(len(rays), np.inf)
+    if len(index):  # trimesh returns a flat empty array when no ray hits
+        dist[index] = np.linalg.norm(np.asarray(locations).reshape(-1, 3) - rays[index], axis=1)
     d_plus, d_minus = dist[: n * samples].reshape(n, samples), dist[n * samples:].reshape(n, samples)
     extent = np.asarray(widths, dtype=float)[:, None] - d_plus - d_minus
     extent[~np.isfinite(extent) | (d_plus > 2 * half[:, None]) | (d_minus > 2 * half[:, None])] = 0.0
