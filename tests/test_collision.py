@@ -5,7 +5,7 @@ import trimesh
 
 from kgn_bench.geometry import invert_pose, make_pose
 from kgn_bench.grasp import GraspSet
-from kgn_bench.gripper import GRIPPER
+from kgn_bench.gripper import GRIPPER, PANDA_HAND
 from kgn_bench.shapes import EVAL_DENSITY, TRAIN_DENSITY
 from kgn_bench.shapes.primitives import Cuboid, Cylinder, Sphere
 from kgn_bench.sim.collision import body_collisions, label_collisions, label_scene, proxy_hits_table
@@ -104,6 +104,20 @@ def test_body_collisions_see_the_palm_and_wrist_where_the_proxy_does_not():
     side = make_pose(np.stack([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]], axis=1), [0.0, 0.0, 0.03])
     assert body_collisions(Scene([box]), side[None], back=0.10)[0]
     assert not body_collisions(Scene([box]), grasp, back=0.10)[0]
+
+
+def test_the_fully_open_fingers_of_the_floating_hand_are_swept_where_asked():
+    """The Panda hand (no wrist) on the 4 cm box, closing along y; a 1 cm post 4.8 cm from the grasp along the
+    closing axis, 4 cm tall: below the palm, outside the 4 cm grasp's narrow finger path, but in the path of a
+    finger opened to 8 cm (its inner face at 4 cm, 1.2 cm thick)."""
+    down = np.stack([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], axis=1)
+    grasp = make_pose(down, [0.0, 0.0, 0.03])[None]
+    box = SceneObject(Cuboid((0.04, 0.04, 0.05)), (1, 0, 0), make_pose(t=[0.0, 0.0, 0.025]))
+    post = SceneObject(Cylinder(0.005, 0.04), (0, 1, 0), make_pose(t=[0.0, 0.048, 0.02]))
+    scene = Scene([box, post])
+    assert not body_collisions(scene, grasp, back=0.05, gripper=PANDA_HAND)[0]
+    assert body_collisions(scene, grasp, back=0.05, gripper=PANDA_HAND, fingers_open=0.08)[0]
+    assert not body_collisions(Scene([box]), grasp, back=0.05, gripper=PANDA_HAND, fingers_open=0.08)[0]
 
 
 def test_a_wide_proxy_sees_a_neighbour_at_its_far_end():

@@ -195,10 +195,10 @@ def test_oracle_takes_the_floating_hands_distances_gripper_and_held_floor():
     oracle = OracleDetector()
     arm = ExecutionConfig()
     oracle.configure(arm)
-    assert (oracle.approach, oracle.depth, oracle.gripper, oracle.min_pinch) == (
-        arm.pregrasp_distance, arm.grasp_depth, GRIPPER, 0.0)
+    assert (oracle.approach, oracle.depth, oracle.gripper, oracle.min_pinch, oracle.fingers_open) == (
+        arm.pregrasp_distance, arm.grasp_depth, GRIPPER, 0.0, None)
     oracle.configure(ExecutionConfig(hand="floating", gripper="panda"))
-    assert (oracle.approach, oracle.depth, oracle.gripper) == (0.05, 0.0, PANDA_HAND)
+    assert (oracle.approach, oracle.depth, oracle.gripper, oracle.fingers_open) == (0.05, 0.0, PANDA_HAND, 0.08)
     assert oracle.min_pinch == pytest.approx(0.008 + PINCH_MARGIN)
 
 

@@ -9,9 +9,10 @@ than the task's gripper opens, those whose labelling proxy collides and those wh
 anything on the straight approach from ``approach`` m back to where the executor closes (``sim/collision.py``,
 exact scene geometry, the task's gripper), in the camera frame. Where it closes: ``grasp_depth`` past the grasp
 origin for the arm; at the origin itself, after GIGA's 5 cm pre-grasp, for the floating hand
-(``sim.floating_hand``). The floating hand's success rule also needs the jaws to stay more than
-``giga.MIN_HELD_WIDTH × max_width`` (8 mm) apart on the object, so there the oracle also drops the grasps whose
-pinched extent (``pinched_extent``, on the object's mesh) is not ``PINCH_MARGIN`` more than that.
+(``sim.floating_hand``), whose fingers, always fully open, are swept too. The floating hand's success rule
+also needs the jaws to stay more than ``giga.MIN_HELD_WIDTH × max_width`` (8 mm) apart on the object, so there
+the oracle also drops the grasps whose pinched extent (``pinched_extent``, on the object's mesh) is not
+``PINCH_MARGIN`` more than that.
 
 Confidence favours top-down approaches (the executor's easiest) near the object's centre (the stablest):
 ``c = ½ (1 − x_grasp · ẑ_world) − 2 m⁻¹ · ‖t_grasp − t_object‖``.
@@ -101,6 +102,7 @@ class OracleDetector:
         self.approach = ExecutionConfig().pregrasp_distance if approach is None else approach
         self.depth = ExecutionConfig().grasp_depth
         self.gripper = GRIPPER
+        self.fingers_open: float | None = None
         self.min_pinch = 0.0
         self._scene: Scene | None = None
 
@@ -110,10 +112,11 @@ class OracleDetector:
         ``giga.PREGRASP_DISTANCE`` and no push)."""
         self.gripper = execution.geometry
         if execution.hand == "floating":
-            self.approach, self.depth = giga.PREGRASP_DISTANCE, 0.0
+            self.approach, self.depth, self.fingers_open = giga.PREGRASP_DISTANCE, 0.0, self.gripper.max_width
             self.min_pinch = giga.MIN_HELD_WIDTH * self.gripper.max_width + PINCH_MARGIN
         else:
-            self.approach, self.depth = execution.pregrasp_distance, execution.grasp_depth
+            self.approach, self.depth, self.fingers_open = execution.pregrasp_distance, execution.grasp_depth, None
+            self.min_pinch = 0.0
 
     def attach(self, scene: Scene) -> None:
         self._scene = scene
@@ -133,7 +136,7 @@ class OracleDetector:
             grasps = true_grasps(scene, i, self.gripper)
             pushed = grasps.poses.copy()  # where the executor closes the jaws
             pushed[:, :3, 3] += self.depth * grasps.poses[:, :3, 0]
-            hits = body_collisions(scene, pushed, self.approach + self.depth, self.gripper)
+            hits = body_collisions(scene, pushed, self.approach + self.depth, self.gripper, self.fingers_open)
             grasps = grasps.with_collisions(hits).free()
             if self.min_pinch > 0 and len(grasps):
                 local = invert_pose(T) @ grasps.poses

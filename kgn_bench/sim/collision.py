@@ -59,7 +59,8 @@ def label_scene(scene: Scene, density) -> list[GraspSet]:
     return out
 
 
-def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: GripperGeometry = GRIPPER) -> np.ndarray:
+def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: GripperGeometry = GRIPPER,
+                    fingers_open: float | None = None) -> np.ndarray:
     """(N,) bool: the palm or wrist of world grasps ``poses`` (N, 4, 4), swept along the straight approach
     from ``back`` m behind the grasp, penetrates the table top (z < 0) or any object, the grasped one included.
 
@@ -67,9 +68,14 @@ def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: Gripp
     and 10 cm deep, while the palm spans the full jaw travel and the wrist follows it. Between them the two
     tests cover the whole gripper's approach (the fingers' swept path behind ``−proxy_depth`` lies inside
     the swept palm). A gripper without a wrist (``wrist_length`` 0: the floating hand) sweeps its palm only.
+    ``fingers_open``: also sweep the two fingers open that wide (m), for a hand that always opens fully (the
+    floating hand): its fingers pass outside the grasp's own width, where the proxy does not look.
     Exact scene geometry, so privileged: the oracle's, never a detector's.
     """
-    boxes = [b.swept(back) for b in (gripper.palm_box(), gripper.wrist_box()) if np.all(b.half > 0)]
+    parts = [gripper.palm_box(), gripper.wrist_box()]
+    if fingers_open is not None:
+        parts += [gripper.finger_box(+1, fingers_open), gripper.finger_box(-1, fingers_open)]
+    boxes = [b.swept(back) for b in parts if np.all(b.half > 0)]
     hits = np.zeros(len(poses), dtype=bool)
     for box in boxes:
         hits |= box_corners(box, poses)[..., 2].min(axis=1) < 0.0
