@@ -23,7 +23,8 @@ def test_each_term_is_measured_alone():
     deeper = make_pose(np.eye(3), [0.0, 0.0, -0.015])  # 1.5 cm further along the ray
     turned = make_pose(rot_x(np.radians(30.0)), [0.0, 0.0, 0.0])
     pred = np.stack([lateral, deeper, turned])
-    errors, matched, shapes = decompose_image(pred, np.array([0.05, 0.05, 0.07]), gt, ["cuboid"], obs)
+    errors, matched, shapes, keypoints = decompose_image(pred, np.array([0.05, 0.05, 0.07]), gt, ["cuboid"], obs)
+    assert keypoints.shape == (3, 4) and np.isnan(keypoints).all()  # no keypoints given
     col = {t: errors[:, TERMS.index(t)] for t in TERMS}
     assert col["centre_cm"][0] == pytest.approx(2.0, rel=1e-6) and col["ray_cm"][0] == pytest.approx(0.025, abs=1e-3)
     assert col["centre_px"][0] == pytest.approx(0.02 * REALSENSE.fx / 0.8, rel=1e-6)
@@ -37,6 +38,24 @@ def test_each_term_is_measured_alone():
     assert s["rotation_deg"]["share_of_failures"] == pytest.approx(1 / 3) and s["gsr_1cm"] == 0.0
 
 
+def test_keypoint_errors_in_pixels_respect_the_flip():
+    """The GT grasp's own box keypoints score 0, and so do its flipped ones (L↔R, TL↔TR); shifted by 3 px in u
+    every keypoint is 3 px off."""
+    from kgn_bench.eval.errors import keypoint_errors
+    from kgn_bench.geometry import invert_pose, project
+    from kgn_bench.grasp import keypoints_in_frame
+
+    obs = _obs()
+    g = make_pose(rot_x(np.radians(20.0)), [0.01, -0.02, 0.05])[None]
+    cam = keypoints_in_frame(invert_pose(obs.camera_pose) @ g, 0.1)
+    kp = project(cam.reshape(-1, 3), REALSENSE.K).reshape(1, 4, 2)
+    np.testing.assert_allclose(keypoint_errors(kp, g, np.array([0.1]), obs), 0.0, atol=1e-9)
+    np.testing.assert_allclose(keypoint_errors(kp[:, [1, 0, 3, 2]], g, np.array([0.1]), obs), 0.0, atol=1e-9)
+    np.testing.assert_allclose(keypoint_errors(kp + [3.0, 0.0], g, np.array([0.1]), obs), 3.0, atol=1e-9)
+    # a box twice as large is not the GT's: its keypoints are off
+    assert keypoint_errors(kp, g, np.array([0.2]), obs).min() > 5.0
+
+
 def test_decomposition_of_a_real_detector(tiny_dataset, tmp_path):
     from kgn_bench.detectors.kgn import KGNDetector
     from kgn_bench.eval.errors import decompose_dataset, write_errors
@@ -46,5 +65,9 @@ def test_decomposition_of_a_real_detector(tiny_dataset, tmp_path):
     errors, _, shapes = table.arrays()
     assert len(errors) > 0 and np.all(np.isfinite(errors)) and set(shapes) <= {"cuboid", "cylinder", "ring", "stick",
                                                                                "sphere", "semi_sphere"}
+    keypoints = table.keypoint_arrays()
+    assert keypoints.shape == (len(errors), 4) and np.all(np.isfinite(keypoints)) and np.all(keypoints >= 0)
     paths = write_errors(table, tmp_path / "e", "test", {"views": 2})
     assert all(p.is_file() for p in paths) and "| all |" in paths[1].read_text()
+    assert "Keypoint error before PnP" in paths[1].read_text()
+    assert "keypoints_px" in table.summary()["all"]

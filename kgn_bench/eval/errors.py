@@ -14,7 +14,13 @@ so it is the one the prediction came closest to matching. The terms:
 * **rotation**: the symmetric geodesic angle ``d_R`` (degrees, the 180° flip about the approach is the same
   grasp): what the orientation bin and the keypoints decide;
 * **width**: ``w_p − w_g`` (cm). The vision metrics do not score the width; it is reported because the closed
-  loop uses it.
+  loop uses it;
+* **keypoints** (keypoint detectors only): for each of the 4 box keypoints (L, R, TL, TR), the pixel distance
+  between the detector's keypoint (``Candidates.keypoints``, the network's output before PnP) and the
+  projection of the nearest GT grasp's box keypoints, the box of the detector's variant at the GT grasp's
+  distance (``Variant.box_sides``); of the GT grasp's two forms (the 180° flip swaps L with R and TL with TR)
+  the one nearer on average. This is the error PnP turns into a pose error (the paper's Fig. 2,
+  ``eval.pnp_noise``).
 
 "Share of 1 cm failures each term alone would cause": the fraction of predictions that would fail the
 (1 cm, 20°) match with that term's error alone (``|e_⊥| ≥ 1 cm``, ``|e_∥| ≥ 1 cm``, ``d_R ≥ 20°``), and the
@@ -33,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from kgn_bench.geometry import invert_pose, project, transform_points
-from kgn_bench.grasp import GraspSet
+from kgn_bench.grasp import KEYPOINT_NAMES, GraspSet, flip_180, keypoints_in_frame
 from kgn_bench.io import atomic_write_text
 from kgn_bench.progress import Progress
 from kgn_bench.types import Candidates, Observation
@@ -41,27 +47,38 @@ from kgn_bench.types import Candidates, Observation
 from .views import detector_call, iter_views
 from .vision import SHAPES, nearest_grasps, shape_column
 
-__all__ = ["TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image", "grasp_errors", "markdown",
-           "write_errors"]
+__all__ = ["KEYPOINT_TERMS", "TERMS", "ErrorTable", "cdf_figure", "decompose_dataset", "decompose_image",
+           "grasp_errors", "keypoint_errors", "markdown", "write_errors"]
 
 TERMS = ("centre_px", "centre_cm", "ray_cm", "rotation_deg", "width_cm")
 """The columns of each prediction's error row."""
+KEYPOINT_TERMS = tuple(f"{name}_px" for name in KEYPOINT_NAMES)
+"""The per-keypoint columns (pixels; NaN for a detector without keypoints)."""
 _LIMITS = {"centre_cm": 1.0, "ray_cm": 1.0, "rotation_deg": 20.0}
 """What each term alone must stay under for the (1 cm, 20°) match (translation in cm, rotation in degrees)."""
 
 
 @dataclass
 class ErrorTable:
-    """One row per prediction: the ``TERMS`` errors, whether it matched at (1 cm, 20°), and its shape."""
+    """One row per prediction: the ``TERMS`` errors, whether it matched at (1 cm, 20°), its shape, and its
+    ``KEYPOINT_TERMS`` errors (NaN where the detector has no keypoints)."""
 
     rows: list[np.ndarray] = field(default_factory=list)
     matched: list[np.ndarray] = field(default_factory=list)
     shapes: list[np.ndarray] = field(default_factory=list)
+    keypoints: list[np.ndarray] = field(default_factory=list)
 
-    def add(self, errors: np.ndarray, matched: np.ndarray, shapes: np.ndarray) -> None:
+    def add(self, errors: np.ndarray, matched: np.ndarray, shapes: np.ndarray,
+            keypoints: np.ndarray | None = None) -> None:
         self.rows.append(errors)
         self.matched.append(matched)
         self.shapes.append(shapes)
+        self.keypoints.append(np.full((len(errors), len(KEYPOINT_TERMS)), np.nan) if keypoints is None
+                              else np.asarray(keypoints, dtype=float))
+
+    def keypoint_arrays(self) -> np.ndarray:
+        """(N, 4) the predictions' keypoint errors (px), NaN where none."""
+        return np.concatenate(self.keypoints) if self.keypoints else np.zeros((0, len(KEYPOINT_TERMS)))
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if not self.rows:
@@ -72,6 +89,7 @@ class ErrorTable:
         """Per shape (and ``all``): predictions, 1 cm GSR, median / 90th percentile of each term, and the
         share of predictions (and of failures) each term alone would fail."""
         errors, matched, shapes = self.arrays()
+        keypoints = self.keypoint_arrays()
         out: dict[str, Any] = {}
         for name in ("all", *SHAPES):
             sel = np.ones(len(errors), dtype=bool) if name == "all" else shapes == name
@@ -82,6 +100,12 @@ class ErrorTable:
             for j, term in enumerate(TERMS):
                 col = np.abs(e[:, j])
                 row[term] = {"median": float(np.median(col)), "p90": float(np.percentile(col, 90))}
+            kp = keypoints[sel]
+            if np.isfinite(kp).all() and len(kp):
+                for j, term in enumerate(KEYPOINT_TERMS):
+                    row[term] = {"median": float(np.median(kp[:, j])), "p90": float(np.percentile(kp[:, j], 90))}
+                mean = kp.mean(axis=1)
+                row["keypoints_px"] = {"median": float(np.median(mean)), "p90": float(np.percentile(mean, 90))}
             for term, limit in _LIMITS.items():
                 alone = np.abs(e[:, TERMS.index(term)]) >= limit
                 row[term]["fails_alone"] = float(alone.mean())
@@ -112,31 +136,61 @@ def grasp_errors(pred_world: np.ndarray, pred_widths: np.ndarray, grasps: GraspS
     return errors, matched, nearest
 
 
+def keypoint_errors(pred_keypoints: np.ndarray, gt_world: np.ndarray, sides: np.ndarray, obs: Observation
+                    ) -> np.ndarray:
+    """(N, 4) pixel distances between predicted keypoints (N, 4, 2; L, R, TL, TR) and the projected box
+    keypoints of grasps ``gt_world`` (N, 4, 4, world frame) with box sides ``sides`` (N,) m, each against the GT
+    grasp's form (itself or its 180° flip) with the smaller mean distance (module docstring)."""
+    T_cam_gt = invert_pose(obs.camera_pose) @ gt_world
+    K = obs.intrinsics.K
+    forms = []
+    for poses in (T_cam_gt, flip_180(T_cam_gt)):
+        pts = keypoints_in_frame(poses, sides)
+        forms.append(np.linalg.norm(project(pts.reshape(-1, 3), K).reshape(-1, 4, 2) - pred_keypoints, axis=2))
+    a, b = forms
+    return np.where((a.mean(axis=1) <= b.mean(axis=1))[:, None], a, b)
+
+
 def decompose_image(pred_world: np.ndarray, pred_widths: np.ndarray, gt: list[GraspSet], types: list[str],
-                    obs: Observation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    obs: Observation, pred_keypoints: np.ndarray | None = None,
+                    box_sides: Callable[[np.ndarray], np.ndarray] | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The error rows (N, len(TERMS)) of one image's predictions, their (1 cm, 20°) match against the free
-    GT grasps, and the shape each is attributed to."""
+    GT grasps, the shape each is attributed to, and their keypoint errors (N, 4) px against the nearest GT
+    grasp (NaN unless ``pred_keypoints`` (N, 4, 2) and ``box_sides``, camera distances (m) → box sides (m),
+    are given)."""
     grasps = GraspSet.concatenate(list(gt))
     if len(pred_world) == 0 or len(grasps) == 0:
-        return np.zeros((0, len(TERMS))), np.zeros(0, dtype=bool), np.zeros(0, dtype="<U16")
+        return (np.zeros((0, len(TERMS))), np.zeros(0, dtype=bool), np.zeros(0, dtype="<U16"),
+                np.zeros((0, len(KEYPOINT_TERMS))))
     owner = np.repeat(np.arange(len(gt)), [len(g) for g in gt])
     errors, matched, nearest = grasp_errors(pred_world, pred_widths, grasps, obs)
-    return errors, matched, np.array([shape_column(types[i]) for i in owner[nearest]], dtype="<U16")
+    shapes = np.array([shape_column(types[i]) for i in owner[nearest]], dtype="<U16")
+    keypoints = np.full((len(pred_world), len(KEYPOINT_TERMS)), np.nan)
+    if pred_keypoints is not None and box_sides is not None:
+        gt_world = grasps.poses[nearest]
+        distance = np.linalg.norm(transform_points(invert_pose(obs.camera_pose), gt_world[:, :3, 3]), axis=1)
+        keypoints = keypoint_errors(pred_keypoints, gt_world, box_sides(distance), obs)
+    return errors, matched, shapes, keypoints
 
 
 def decompose_dataset(detect: Callable[[Observation], Candidates], data_dir: Path, split: str = "test",
                       views: int | None = None, progress: bool = True) -> ErrorTable:
-    """The ``ErrorTable`` of a detector over a split (the first ``views`` images)."""
+    """The ``ErrorTable`` of a detector over a split (the first ``views`` images); keypoint errors where the
+    detector returns keypoints and has a ``variant`` (``detectors.kgn.KGNDetector``) whose box they belong to."""
     run = detector_call(detect)
+    variant = getattr(detect, "variant", None)
+    box_sides = variant.box_sides if variant is not None else None
     total, items = iter_views(data_dir, split, views)
     table = ErrorTable()
     bar = Progress(total, f"eval errors {split}", unit="images", enabled=progress)
     hits = predictions = 0
     for item in items:
         cands = run(item)
-        errors, matched, shapes = decompose_image(cands.world_poses(item.observation.camera_pose), cands.widths,
-                                                  item.gt, item.types, item.observation)
-        table.add(errors, matched, shapes)
+        errors, matched, shapes, keypoints = decompose_image(
+            cands.world_poses(item.observation.camera_pose), cands.widths, item.gt, item.types, item.observation,
+            cands.keypoints, box_sides)
+        table.add(errors, matched, shapes, keypoints)
         hits, predictions = hits + int(matched.sum()), predictions + len(matched)
         bar.update(extra=f"GSR@1cm {100 * hits / max(predictions, 1):.0f}%")
     return table
@@ -160,6 +214,15 @@ def markdown(summary: dict[str, Any], title: str) -> str:
         cells = [f"{row[t]['median']:.2f} ({row[t]['p90']:.2f})" for t in TERMS]
         lines.append(f"| {name} | {row['predictions']} | {100 * row['gsr_1cm']:.1f} % | " + " | ".join(cells)
                      + f" | {share(row['centre_cm'])} | {share(row['ray_cm'])} | {share(row['rotation_deg'])} |")
+    rows = {name: row for name, row in summary.items() if "keypoints_px" in row}
+    if rows:
+        terms = (*KEYPOINT_TERMS, "keypoints_px")
+        lines += ["", "Keypoint error before PnP (px in the 640 × 480 image), median (90th percentile), against "
+                  "the nearest GT grasp's box keypoints:", "",
+                  "| shape | " + " | ".join(KEYPOINT_NAMES) + " | mean of the 4 |", "|---|" + "---:|" * len(terms)]
+        for name, row in rows.items():
+            lines.append(f"| {name} | " + " | ".join(f"{row[t]['median']:.2f} ({row[t]['p90']:.2f})" for t in terms)
+                         + " |")
     return "\n".join(lines) + "\n"
 
 
