@@ -24,12 +24,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from kgn_bench.gripper import PANDA_HAND
+
 __all__ = [
     "APPROACH_SPEED", "CAMERA_AZIMUTH_DEG", "CAMERA_DISTANCE", "CAMERA_ELEVATION_DEG", "CAMERA_FAR", "CAMERA_TARGET",
-    "CLOSE_TIME", "LIFT_DISTANCE", "MAX_CONSECUTIVE_FAILURES", "MAX_EXTENT", "MIN_HELD_WIDTH", "OBJECTS_PER_ROUND",
-    "PACKED_HALF", "PACKED_SCALE", "PACKED_TRIES", "PILE_DROP_HALF", "PILE_DROP_HEIGHT", "PILE_SCALE",
-    "PREGRASP_DISTANCE", "RESOLUTION", "SIDE_GRASP_DEG", "TABLE_HEIGHT", "TRUNCATION_VOXELS", "VOXEL_SIZE",
-    "WORKSPACE_ORIGIN", "WORKSPACE_SIZE", "in_workspace",
+    "CLOSE_TIME", "GRASP_REFERENCE_DEPTH", "LIFT_DISTANCE", "MAX_CONSECUTIVE_FAILURES", "MAX_EXTENT", "MIN_HELD_WIDTH",
+    "OBJECTS_PER_ROUND", "PACKED_HALF", "PACKED_SCALE", "PACKED_TRIES", "PILE_DROP_HALF", "PILE_DROP_HEIGHT",
+    "PILE_SCALE", "PREGRASP_DISTANCE", "RESOLUTION", "SIDE_GRASP_DEG", "TABLE_HEIGHT", "TRUNCATION_VOXELS",
+    "VOXEL_SIZE", "WORKSPACE_ORIGIN", "WORKSPACE_SIZE", "in_workspace",
 ]
 
 # -- workspace ------------------------------------------------------------------------------------------
@@ -45,6 +47,12 @@ VOXEL_SIZE = WORKSPACE_SIZE / RESOLUTION
 """Side (m) of one voxel: 7.5 mm."""
 TRUNCATION_VOXELS = 4
 """TSDF truncation distance in voxels (3 cm)."""
+GRASP_REFERENCE_DEPTH = PANDA_HAND.finger_length
+"""Where VGN puts a grasp's position (m behind the fingertips along the approach): its TCP sits VGN's finger
+depth (5 cm, the Panda hand's finger length, ``gripper.PANDA_HAND``) behind the fingertips, so a grasp sampled
+``d`` in front of a surface point (VGN: ``p + d·n``, ``d ~ U(−0.5, 5.5)`` cm) has its position in the observed
+band in front of that surface and its fingertips ``5 cm − d`` past it. This project's grasp frame has its
+origin at the fingertips: ``position = origin − GRASP_REFERENCE_DEPTH · approach``."""
 
 
 def in_workspace(points: np.ndarray) -> np.ndarray:

@@ -51,7 +51,7 @@ def test_keypoint_errors_in_pixels_respect_the_flip():
     kp = project(cam.reshape(-1, 3), REALSENSE.K).reshape(1, 4, 2)
     np.testing.assert_allclose(keypoint_errors(kp, g, np.array([0.1]), obs), 0.0, atol=1e-9)
     np.testing.assert_allclose(keypoint_errors(kp[:, [1, 0, 3, 2]], g, np.array([0.1]), obs), 0.0, atol=1e-9)
-    np.testing.assert_allclose(keypoint_errors(kp + [3.0, 0.0], g, np.array([0.1]), obs), 3.0, atol=1e-9)
+    np.testing.assert_allclose(keypoint_errors(kp + np.array([3.0, 0.0]), g, np.array([0.1]), obs), 3.0, atol=1e-9)
     # a box twice as large is not the GT's: its keypoints are off
     assert keypoint_errors(kp, g, np.array([0.2]), obs).min() > 5.0
 

@@ -23,6 +23,7 @@ from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz
 from kgn_bench.giga import (
     CAMERA_DISTANCE,
     CAMERA_TARGET,
+    GRASP_REFERENCE_DEPTH,
     RESOLUTION,
     TRUNCATION_VOXELS,
     VOXEL_SIZE,
@@ -123,11 +124,12 @@ def test_select_grasps_leaves_its_inputs_alone_and_checks_shapes():
         select_grasps(quality, IDENTITY[:3], _widths(), _free())
 
 
-def test_grid_poses_put_the_grasp_at_index_times_voxel():
+def test_grid_poses_put_the_grasps_reference_point_at_index_times_voxel():
     q = np.array([[np.cos(0.3), 0.0, np.sin(0.3), 0.0]])
     poses = grid_poses(VoxelGrasps(np.array([[3, 4, 5]]), q, np.array([4.0]), np.array([0.9])), 0.0075)
-    np.testing.assert_allclose(poses[0, :3, 3], [0.0225, 0.03, 0.0375])  # no half-voxel offset
     np.testing.assert_allclose(poses[0, :3, :3], matrix_from_quat_wxyz(q[0]))
+    reference = poses[0, :3, 3] - 0.05 * poses[0, :3, 0]  # VGN's TCP, a finger depth behind the fingertips
+    np.testing.assert_allclose(reference, [0.0225, 0.03, 0.0375])  # no half-voxel offset
     assert grid_poses(VoxelGrasps(np.zeros((0, 3), int), np.zeros((0, 4)), np.zeros(0), np.zeros(0)),
                       0.0075).shape == (0, 4, 4)
 
@@ -181,8 +183,9 @@ def test_end_to_end_on_a_rendered_view(tmp_path, giga_view):
     assert np.all(np.diff(cands.confidences) <= 0) and cands.confidences.min() >= 0.9
     assert np.all((cands.widths >= 0.01 - 1e-4) & (cands.widths <= 0.07 + 1e-4))
     world = cands.world_poses(obs.camera_pose)
-    assert np.all(in_workspace(world[:, :3, 3]))
-    assert world[:, 2, 3].min() >= 7 * VOXEL_SIZE + WORKSPACE_ORIGIN[2] - 1e-9  # GIGA's border: k ≥ 7
+    reference = world[:, :3, 3] - GRASP_REFERENCE_DEPTH * world[:, :3, 0]
+    assert np.all(in_workspace(reference))
+    assert reference[:, 2].min() >= 7 * VOXEL_SIZE + WORKSPACE_ORIGIN[2] - 1e-9  # GIGA's border: k ≥ 7
     rotations = world[:, :3, :3]
     np.testing.assert_allclose(rotations @ np.swapaxes(rotations, 1, 2), np.broadcast_to(np.eye(3), rotations.shape),
                                atol=1e-6)

@@ -16,7 +16,7 @@ from kgn_bench.data.vgn_generate import (
     grasp_frames,
     grasp_views,
     label_grasps,
-    snap_origins,
+    snap_references,
     to_voxels,
     widest_run_centre,
 )
@@ -70,7 +70,8 @@ def test_labels_hold_across_the_narrow_side_only():
     assert labels.labels[0] and widest_run_centre(labels.holds[0]) == 0
     assert labels.widths[0] == pytest.approx(0.04, abs=0.004)
     voxels, quats, widths, keep = to_voxels(labels.poses, labels.widths)
-    np.testing.assert_allclose(voxels[0] * giga.VOXEL_SIZE + giga.WORKSPACE_ORIGIN, labels.poses[0, :3, 3])
+    reference = labels.poses[0, :3, 3] - giga.GRASP_REFERENCE_DEPTH * labels.poses[0, :3, 0]  # 5 cm behind the tips
+    np.testing.assert_allclose(voxels[0] * giga.VOXEL_SIZE + giga.WORKSPACE_ORIGIN, reference)
     assert keep[0] and widths[0] == pytest.approx(labels.widths[0] / giga.VOXEL_SIZE)
     np.testing.assert_allclose(np.linalg.norm(quats, axis=1), 1.0)
 
@@ -106,10 +107,11 @@ def test_the_precheck_rejects_only_grasps_that_execution_fails():
     assert a.holds[0, 0] and not a.holds[1].any()
 
 
-def test_snapped_origins_lie_on_the_grid_lattice():
+def test_snapped_reference_points_lie_on_the_grid_lattice():
     frames = grasp_frames(np.array([[0.0123, -0.0456, 0.0311]]), np.array([[0.3, 0.1, 0.9]]), np.array([0.02]), 3)
-    snapped = snap_origins(frames)
-    voxels = (snapped[..., :3, 3] - giga.WORKSPACE_ORIGIN) / giga.VOXEL_SIZE
+    snapped = snap_references(frames)
+    reference = snapped[..., :3, 3] - giga.GRASP_REFERENCE_DEPTH * snapped[..., :3, 0]
+    voxels = (reference - giga.WORKSPACE_ORIGIN) / giga.VOXEL_SIZE
     np.testing.assert_allclose(voxels, np.rint(voxels), atol=1e-9)
     assert np.abs(snapped[..., :3, 3] - frames[..., :3, 3]).max() <= giga.VOXEL_SIZE / 2 + 1e-12
     np.testing.assert_array_equal(snapped[..., :3, :3], frames[..., :3, :3])

@@ -10,8 +10,9 @@ A scene file holds the network input and every labelled grasp of that scene:
 - ``tsdf`` (R, R, R) float32: ``TSDFVolume.network_input()`` of the scene's one noisy side view (GIGA's "dex"
   noise applied to the depth image by the generator before fusion), indexed ``[i, j, k]`` = world x, y, z;
 - ``voxels`` (N, 3) float32: each grasp's position in voxel units, VGN's convention: ``p_grid / voxel`` where
-  ``p_grid = p_world − giga.WORKSPACE_ORIGIN`` is the grasp frame's origin (fingertip midpoint) in the grid frame
-  (world axes, origin at the cube's corner). Voxel ``(i, j, k)`` therefore stands for the point
+  ``p_grid = p_world − giga.WORKSPACE_ORIGIN`` is the grasp's reference point (VGN's TCP,
+  ``giga.GRASP_REFERENCE_DEPTH`` behind the grasp frame's origin, the fingertip midpoint, along the approach) in
+  the grid frame (world axes, origin at the cube's corner). Voxel ``(i, j, k)`` therefore stands for the point
   ``(i, j, k) · voxel`` (no +½: the TSDF samples voxel centres, the grasp labels do not; the network learns that
   offset and ``detectors.vgn`` decodes with it). The loss reads the network at ``round(voxels)``;
 - ``quats`` (N, 4) float32: unit quaternion (w, x, y, z) of ``R_grid_grasp`` (= ``R_world_grasp``: the grid has

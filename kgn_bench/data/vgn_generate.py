@@ -12,8 +12,10 @@ hand's work cell (``sim.floating_hand``); objects that leave the workspace cube 
   whose outward normal ``n`` has ``n_z > −0.1`` and that one of VGN's 1 to 6 random views from above sees
   (``grasp_views``: VGN samples the surface those views reconstruct). The approach is ``a = −n``; the fingertips go
   ``e ~ U(−0.1 d, 1.1 d)`` past ``p`` (``d`` = the hand's finger length, VGN's finger depth), so the grasp
-  origin (the fingertip midpoint) is ``o = p + e·a``; with ``snap`` (the default) ``o`` then moves to the
-  nearest grid point ``WORKSPACE_ORIGIN + round((o − WORKSPACE_ORIGIN) / voxel) · voxel`` (``snap_origins``).
+  origin (the fingertip midpoint) is ``o = p + e·a``. VGN's position of the grasp is its reference point
+  ``r = o − giga.GRASP_REFERENCE_DEPTH · a``, ``d − e`` in front of the surface; with ``snap`` (the default)
+  ``r`` then moves to the nearest grid point ``WORKSPACE_ORIGIN + round((r − WORKSPACE_ORIGIN) / voxel) · voxel``
+  and the fingertips with it (``snap_references``).
   The closing axis at yaw 0 is the world x axis made perpendicular to ``a`` (world y if ``a`` is nearly along
   x), and ``yaws`` closing axes turned about ``a`` cover [0, π): grasp frame ``R = [a, c × a, c]`` (+x
   approach, z closing; world frame);
@@ -26,16 +28,22 @@ hand's work cell (``sim.floating_hand``); objects that leave the workspace cube 
   yaw in the middle of the longest run of holding yaws (circularly: yaw π is yaw 0) and its width the opening
   measured there. A negative keeps yaw 0 and the hand's maximum opening.
 
-**Why snap.** The network predicts a grasp at each voxel ``(i, j, k)`` and the detector executes it at
-``(i, j, k) · voxel``; VGN labels grasps anywhere and reads them at the rounded voxel, so a label describes a
-grasp up to half a voxel (3.75 mm) away from the one that is executed. On this generator's data that shift
-alone turned 39 of 65 holding grasps into failures in 4 scenes (pre-grasp collisions and misses: most grasps
-sit close to a collision). Snapped, every label is the grasp the detector would execute at its voxel.
+**The reference point.** The network predicts a grasp at each voxel; what it can see there decides what it can
+learn. VGN's position is its TCP, a finger depth behind the fingertips: in front of the sampled surface, in the
+observed band, where the surface's side and normal show. The fingertips themselves lie 0-5.5 cm past the
+surface, inside a 7 cm object, where one voxel collects grasps from every side of it (v2 of this data, which
+stored the fingertips, trained a rotation head that never left the mean direction).
 
-Positions are stored in VGN's voxel convention: ``(o − WORKSPACE_ORIGIN) / VOXEL_SIZE`` (no half-voxel
+**Why snap.** The detector executes the grasp whose reference point is the voxel ``(i, j, k) · voxel``; VGN
+labels a grasp wherever it was sampled and reads it at the rounded voxel, so a label describes a grasp up to
+half a voxel (3.75 mm) away from the one that is executed. On this generator's data that shift alone turned
+39 of 65 holding grasps into failures in 4 scenes (pre-grasp collisions and misses: most grasps sit close to a
+collision). Snapped, every label is the grasp the detector would execute at its voxel.
+
+Positions are stored in VGN's voxel convention: ``(r − WORKSPACE_ORIGIN) / VOXEL_SIZE`` (no half-voxel
 shift; integers when snapped), rotations as unit quaternions ``(w, x, y, z)`` of ``R_grid_grasp`` (the grid's
-axes are the world's), widths in voxels. Grasps whose origin lies outside the valid part of the cube are
-dropped (VGN's cleaning).
+axes are the world's), widths in voxels. Grasps whose reference point lies outside the valid part of the
+cube are dropped (VGN's cleaning).
 """
 
 from __future__ import annotations
@@ -71,7 +79,8 @@ from kgn_bench.threads import pin_worker_threads
 from kgn_bench.tsdf import TSDFVolume, VoxelGrid
 
 __all__ = ["VALID_MARGIN", "GraspLabels", "VGNDataConfig", "generate_scene", "generate_vgn_dataset", "grasp_frames",
-           "grasp_views", "label_grasps", "sample_surface_points", "side_view", "snap_origins", "to_voxels",
+           "grasp_views", "label_grasps", "reference_points", "sample_surface_points", "side_view", "snap_references",
+           "to_voxels",
            "widest_run_centre"]
 
 VALID_MARGIN = 0.02
@@ -169,12 +178,21 @@ def grasp_frames(points: np.ndarray, normals: np.ndarray, depths: np.ndarray, ya
     return out
 
 
-def snap_origins(frames: np.ndarray) -> np.ndarray:
-    """``frames`` (..., 4, 4, world) with each origin moved to the nearest point of the grid's lattice
-    ``WORKSPACE_ORIGIN + (i, j, k) · VOXEL_SIZE`` (module doc: "Why snap"); orientations unchanged."""
+def reference_points(poses: np.ndarray) -> np.ndarray:
+    """(..., 3) VGN's position of grasps ``poses`` (..., 4, 4, world): ``GRASP_REFERENCE_DEPTH`` behind the
+    fingertip midpoint along the approach (+x), ``o − GRASP_REFERENCE_DEPTH · a``."""
+    return poses[..., :3, 3] - giga.GRASP_REFERENCE_DEPTH * poses[..., :3, 0]
+
+
+def snap_references(frames: np.ndarray) -> np.ndarray:
+    """``frames`` (..., 4, 4, world) each moved so that its reference point (``reference_points``) lies on the
+    nearest point of the grid's lattice ``WORKSPACE_ORIGIN + (i, j, k) · VOXEL_SIZE`` (module doc); orientations
+    unchanged."""
     out = np.array(frames, dtype=float)
     origin = np.asarray(giga.WORKSPACE_ORIGIN)
-    out[..., :3, 3] = origin + np.rint((out[..., :3, 3] - origin) / giga.VOXEL_SIZE) * giga.VOXEL_SIZE
+    ref = reference_points(out)
+    snapped = origin + np.rint((ref - origin) / giga.VOXEL_SIZE) * giga.VOXEL_SIZE
+    out[..., :3, 3] += snapped - ref
     return out
 
 
@@ -245,8 +263,9 @@ def label_grasps(scene: Scene, hand: FloatingHand, frames: np.ndarray, precheck:
 
 def to_voxels(poses: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """VGN's stored form of world grasps: ``(voxels (N, 3) float, quaternions (N, 4) wxyz, widths (N,) in voxels,
-    keep (N,) bool)``, ``keep`` false where the origin lies outside the valid part of the cube."""
-    grid = poses[:, :3, 3] - giga.WORKSPACE_ORIGIN
+    keep (N,) bool)``; ``voxels`` are the reference points', ``keep`` false where one lies outside the valid
+    part of the cube."""
+    grid = reference_points(poses) - giga.WORKSPACE_ORIGIN
     keep = np.all((grid >= VALID_MARGIN) & (grid <= giga.WORKSPACE_SIZE - VALID_MARGIN), axis=1)
     quats = np.array([quat_wxyz_from_matrix(T[:3, :3]) for T in poses]).reshape(-1, 4)
     return grid / giga.VOXEL_SIZE, quats, widths / giga.VOXEL_SIZE, keep
@@ -266,8 +285,9 @@ class VGNDataConfig:
     seed: int = 0
     snap: bool = True
     precheck: bool = True
-    labels: str = field(default="physics-floating-panda-v2")
-    """The labelling rule's version (a change of rule makes another dataset). v2: the kinematic pre-check."""
+    labels: str = field(default="physics-floating-panda-v3")
+    """The labelling rule's version (a change of rule makes another dataset). v2: the kinematic pre-check;
+    v3: positions at VGN's reference point."""
 
     def settings(self) -> dict[str, Any]:
         return {**asdict(self), "objects": list(self.objects)}
@@ -326,7 +346,7 @@ def generate_scene(config: VGNDataConfig, index: int) -> dict[str, Any]:
     depths = rng.uniform(-0.1 * d, 1.1 * d, len(points))
     frames = grasp_frames(points, normals, depths, config.yaws)
     if config.snap:
-        frames = snap_origins(frames)
+        frames = snap_references(frames)
     labels = label_grasps(scene, hand, frames, config.precheck)
     voxels, quats, widths, keep = to_voxels(labels.poses, labels.widths)
     t3 = time.perf_counter()

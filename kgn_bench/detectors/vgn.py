@@ -15,9 +15,11 @@ in this project's grasp frame (origin at the fingertip midpoint, +x approach, z 
 2. one forward pass;
 3. ``select_grasps`` (a pure numpy function, below): Gaussian smoothing of the quality, the surface, width
    and (GIGA) border masks, the threshold, non-maximum suppression, sorted by quality descending;
-4. each kept voxel ``(i, j, k)`` becomes ``T_grid_grasp = [R(q) | (i, j, k) · voxel]``: VGN's convention puts
-   the grasp at the voxel's *index* times the voxel size, not at its centre ``(idx + ½) · voxel`` where the
-   TSDF samples (VGN and GIGA label and decode this way, so the network learnt that offset; keep it), then
+4. each kept voxel ``(i, j, k)`` is a grasp whose reference point (VGN's TCP, ``giga.GRASP_REFERENCE_DEPTH``
+   behind the fingertips) sits at ``(i, j, k) · voxel``: VGN's convention puts the grasp at the voxel's *index*
+   times the voxel size, not at its centre ``(idx + ½) · voxel`` where the TSDF samples (VGN and GIGA label and
+   decode this way, so the network learnt that offset; keep it). In this project's grasp frame (origin at the
+   fingertips) that is ``T_grid_grasp = [R(q) | (i, j, k) · voxel + GRASP_REFERENCE_DEPTH · R(q) x̂]``, then
    ``T_cam_grasp = T_world_cam⁻¹ · T_world_grid · T_grid_grasp``; width = width_voxels · voxel (m);
    confidence = the smoothed quality; no reprojection error (NaN, as every non-keypoint detector).
 
@@ -45,7 +47,7 @@ import torch
 from scipy import ndimage
 
 from kgn_bench.geometry import invert_pose, make_pose, matrix_from_quat_wxyz
-from kgn_bench.giga import VOXEL_SIZE, WORKSPACE_ORIGIN
+from kgn_bench.giga import GRASP_REFERENCE_DEPTH, VOXEL_SIZE, WORKSPACE_ORIGIN
 from kgn_bench.model.vgn_checkpoint import LoadedVGN, load_vgn_model
 from kgn_bench.resources import weights_dir
 from kgn_bench.tsdf import TSDFVolume
@@ -177,12 +179,13 @@ def select_grasps(quality: np.ndarray, rotation: np.ndarray, width: np.ndarray, 
 
 
 def grid_poses(grasps: VoxelGrasps, voxel: float) -> np.ndarray:
-    """(N, 4, 4) ``T_grid_grasp``: rotation from the quaternion, position ``index · voxel`` (VGN's convention:
-    no half-voxel offset; see the module docstring)."""
+    """(N, 4, 4) ``T_grid_grasp``: rotation from the quaternion, reference point at ``index · voxel`` (VGN's
+    convention: no half-voxel offset), so the origin (the fingertips) ``GRASP_REFERENCE_DEPTH`` further along
+    the approach (module docstring)."""
     poses = np.tile(np.eye(4), (len(grasps), 1, 1))
     if len(grasps):
         poses[:, :3, :3] = matrix_from_quat_wxyz(grasps.quaternion)
-        poses[:, :3, 3] = grasps.index * voxel
+        poses[:, :3, 3] = grasps.index * voxel + GRASP_REFERENCE_DEPTH * poses[:, :3, 0]
     return poses
 
 
