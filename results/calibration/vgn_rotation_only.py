@@ -1,8 +1,9 @@
 """Can VGN's rotation head learn the approach from a dataset's labels? Trains the rotation term alone (lr 1e-3,
-batches of 4 scenes, the 90° turns) on the scenes with id < 100 and prints, per epoch, the training rotation loss
-and the approach error (median °, share under 20°) on the positives of the scenes with ids 100 to 170.
+batches of 4 scenes, the 90° turns) on the scenes with id < SPLIT (default 100) and prints, per epoch, the
+training rotation loss and the approach error (median °, share under 20°) on the positives of the scenes with
+ids SPLIT to END − 1 (default 171).
 
-    python results/calibration/vgn_rotation_only.py DATASET EPOCHS
+    python results/calibration/vgn_rotation_only.py DATASET EPOCHS [SPLIT END]
 """
 
 import sys
@@ -18,10 +19,11 @@ from kgn_bench.model.vgn_network import VGNNet
 from kgn_bench.training.vgn_train import VGNSceneDataset, collate_scenes, rotation_loss
 
 folder, epochs = Path(sys.argv[1]), int(sys.argv[2])
+split, end = (int(sys.argv[3]), int(sys.argv[4])) if len(sys.argv) > 4 else (100, 171)
 torch.manual_seed(0)
 torch.set_num_threads(1)
 manifest = read_manifest(folder)
-train = VGNSceneDataset(manifest.folder, [e for e in manifest.scenes if int(e.id) < 100], 0, augment=True)
+train = VGNSceneDataset(manifest.folder, [e for e in manifest.scenes if int(e.id) < split], 0, augment=True)
 net = VGNNet().use_channels_last()
 optimiser = torch.optim.Adam(net.parameters(), 1e-3)
 
@@ -29,7 +31,7 @@ optimiser = torch.optim.Adam(net.parameters(), 1e-3)
 def held_out() -> tuple[float, float]:
     errors = []
     for name in list_scene_ids(folder):
-        if not 100 <= int(name) < 171:
+        if not split <= int(name) < end:
             continue
         scene = read_scene(folder, name)
         with torch.inference_mode():
