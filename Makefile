@@ -35,7 +35,7 @@ test: setup
 # fixed-seed clearance task and the fixed-seed pile task (raw mode), each with kgnv2 and the oracle, against
 # results/ci_baseline.json and results/ci_baseline_pile.json.
 regression: setup
-	for t in ci_regression:ci_baseline ci_pile:ci_baseline_pile; do for d in kgnv2 oracle; do \
+	for t in ci_regression:ci_baseline ci_pile:ci_baseline_pile ci_giga_pile:ci_baseline_giga_pile; do for d in kgnv2 oracle; do \
 	  task=$${t%%:*}; base=$${t##*:}; rm -rf runs/$${task}_$$d; \
 	  $(BIN)/kgn-bench run tasks/$$task.toml --detector $$d --workers 2 --quiet --out runs/$${task}_$$d \
 	    > /dev/null && $(BIN)/kgn-bench check runs/$${task}_$$d --baseline results/$$base.json || exit 1; \
@@ -44,7 +44,7 @@ regression: setup
 # Write the CI baselines anew (after a change that is meant to change records): the same runs as `regression`,
 # each written as its detector's baseline (rates and the records' fingerprint).
 ci-baselines: setup
-	for t in ci_regression:ci_baseline ci_pile:ci_baseline_pile; do for d in kgnv2 oracle; do \
+	for t in ci_regression:ci_baseline ci_pile:ci_baseline_pile ci_giga_pile:ci_baseline_giga_pile; do for d in kgnv2 oracle; do \
 	  task=$${t%%:*}; base=$${t##*:}; rm -rf runs/$${task}_$$d; \
 	  $(BIN)/kgn-bench run tasks/$$task.toml --detector $$d --workers 2 --quiet --out runs/$${task}_$$d \
 	    > /dev/null && $(BIN)/kgn-bench check runs/$${task}_$$d --baseline results/$$base.json --update-baseline \

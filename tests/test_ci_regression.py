@@ -1,6 +1,7 @@
 """The CI regression check (docs/reproducibility.md): the fixed-seed clearance task (24 scenes, sized for
-the statistical test) and the fixed-seed pile task in raw (detector-only) mode, each with the shipped kgnv2
-weights and with the oracle, against results/ci_baseline.json and results/ci_baseline_pile.json
+the statistical test), the fixed-seed pile task in raw (detector-only) mode and 4 rounds of GIGA's pile protocol
+(the floating hand), each with the shipped kgnv2 weights and with the oracle, against results/ci_baseline.json,
+results/ci_baseline_pile.json and results/ci_baseline_giga_pile.json
 (`kgn_bench.bench.check`). In the environment the baselines were written in (the portable kernel set, the
 lock file's packages) the records must be the baseline's, trial by trial; and a kgnv2 spoilt so that about
 one attempt in five fails must fail the statistical test against kgnv2's baseline."""
@@ -16,7 +17,8 @@ from kgn_bench.bench.check import POWERED_ATTEMPTS
 from kgn_bench.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
-CHECKS = {"ci_regression": ROOT / "results" / "ci_baseline.json", "ci_pile": ROOT / "results" / "ci_baseline_pile.json"}
+CHECKS = {"ci_regression": ROOT / "results" / "ci_baseline.json", "ci_pile": ROOT / "results" / "ci_baseline_pile.json",
+          "ci_giga_pile": ROOT / "results" / "ci_baseline_giga_pile.json"}
 
 
 @pytest.mark.parametrize("task", list(CHECKS))
