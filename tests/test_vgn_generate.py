@@ -52,15 +52,21 @@ def test_grasp_frames_approach_into_the_surface_and_sweep_the_closing_axis():
     np.testing.assert_allclose(angles, [0, 30, 60, 90, 120, 150], atol=1e-9)
 
 
-def test_labels_hold_across_the_narrow_side_only():
-    """A 4 × 10 cm box standing on the table, grasped from above 3 cm deep: the 8 cm Panda hand closes on the
-    4 cm side (yaws near 0, closing along x) and not across the 10 cm one (yaw 90°)."""
+def _standing_box() -> tuple[Scene, FloatingHand]:
+    """A 4 × 10 × 8 cm box settled upright on the table of the floating hand's cell, the hand parked."""
     box = Cuboid((0.04, 0.10, 0.08))
     scene = Scene([SceneObject(box, (0.5, 0.5, 0.5), make_pose(t=np.array([0.0, 0.0, 0.041])))],
                   extend=lambda root: add_floating_cell(root, PANDA_HAND))
     hand = FloatingHand(scene, PANDA_HAND)
     hand.park()
     settle(scene)
+    return scene, hand
+
+
+def test_labels_hold_across_the_narrow_side_only():
+    """A 4 × 10 cm box standing on the table, grasped from above 3 cm deep: the 8 cm Panda hand closes on the
+    4 cm side (yaws near 0, closing along x) and not across the 10 cm one (yaw 90°)."""
+    scene, hand = _standing_box()
     top = np.array([[0.0, 0.0, scene.object_pose(0)[2, 3] + 0.04]])
     frames = grasp_frames(top, np.array([[0.0, 0.0, 1.0]]), np.array([0.03]), 6)
     before = scene.data.qpos.copy()
@@ -81,12 +87,7 @@ def test_the_precheck_rejects_only_grasps_that_execution_fails():
     the 10 cm side the fingers land on the box on the way in; beside the box the jaws close on air; with
     the pre-grasp inside the box the hand starts in collision. Each rejected grasp also fails when executed, and
     labelling gives the same labels with and without the pre-check."""
-    box = Cuboid((0.04, 0.10, 0.08))
-    scene = Scene([SceneObject(box, (0.5, 0.5, 0.5), make_pose(t=np.array([0.0, 0.0, 0.041])))],
-                  extend=lambda root: add_floating_cell(root, PANDA_HAND))
-    hand = FloatingHand(scene, PANDA_HAND)
-    hand.park()
-    settle(scene)
+    scene, hand = _standing_box()
     z = scene.object_pose(0)[2, 3] + 0.04
     frames = grasp_frames(np.array([[0.0, 0.0, z], [0.09, 0.0, z]]), np.array([[0.0, 0.0, 1.0]] * 2),
                           np.array([0.03, 0.03]), 6)

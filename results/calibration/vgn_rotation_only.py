@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import torch
 from torch.utils.data import DataLoader
+from vgn_rotation_check import approach_errors  # this folder's script, on the path when run as a script
 
-from kgn_bench.data.vgn_format import list_scene_ids, read_manifest, read_scene
-from kgn_bench.geometry import matrix_from_quat_wxyz
+from kgn_bench.data.vgn_format import read_manifest
 from kgn_bench.model.vgn_network import VGNNet
 from kgn_bench.training.vgn_train import VGNSceneDataset, collate_scenes, rotation_loss
 
@@ -29,20 +29,8 @@ optimiser = torch.optim.Adam(net.parameters(), 1e-3)
 
 
 def held_out() -> tuple[float, float]:
-    errors = []
-    for name in list_scene_ids(folder):
-        if not split <= int(name) < end:
-            continue
-        scene = read_scene(folder, name)
-        with torch.inference_mode():
-            out = net(torch.from_numpy(scene.tsdf)[None, None])
-        positive = scene.labels == 1
-        i, j, k = np.rint(scene.voxels[positive]).astype(int).T
-        truth = matrix_from_quat_wxyz(scene.quats[positive].astype(float))[:, :, 0]
-        guess = matrix_from_quat_wxyz(out.rotation[0].numpy()[:, i, j, k].T.astype(float))[:, :, 0]
-        errors += list(np.degrees(np.arccos(np.clip(np.sum(truth * guess, axis=1), -1.0, 1.0))))
-    e = np.array(errors)
-    return float(np.median(e)), float(np.mean(e < 20.0))
+    errors, _ = approach_errors(net, folder, split, end)
+    return float(np.median(errors)), float(np.mean(errors < 20.0))
 
 
 for epoch in range(epochs):
