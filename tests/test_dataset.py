@@ -29,6 +29,26 @@ def test_evaluation_sample_is_the_inference_input(tiny_dataset):
     assert int(targets["mask"].sum()) > 0
 
 
+def test_stride_two_targets_are_the_finer_maps(tiny_dataset):
+    root, _ = tiny_dataset
+    four, two = GraspViewDataset(root, "test", V2), GraspViewDataset(root, "test", V2, stride=2)
+    x4, M4, shape4, _, _ = four.sample(0)
+    x2, M2, shape2, _, _ = two.sample(0)
+    np.testing.assert_array_equal(x2, x4)
+    np.testing.assert_allclose(M2, 2.0 * M4)
+    assert shape2 == (x2.shape[1] // 2, x2.shape[2] // 2) == (2 * shape4[0], 2 * shape4[1])
+    t4, t2 = four[0][1], two[0][1]
+    assert t2["hm"].shape == (9, *shape2)
+    # the keypoint offsets are in output cells: twice as many at stride 2 for the grasps both keep
+    n = int(t4["mask"].sum())
+    assert int(t2["mask"].sum()) >= n > 0
+    k4 = np.abs(t4["kpts"].numpy()[:n]).max()
+    k2 = np.abs(t2["kpts"].numpy()[: int(t2["mask"].sum())]).max()
+    assert 1.8 * k4 < k2 < 2.2 * k4
+    with pytest.raises(ValueError, match="output stride"):
+        GraspViewDataset(root, "test", V2, stride=8)
+
+
 @pytest.mark.parametrize("flip", [0.0, 1.0])
 def test_augmented_targets_sit_where_the_grasps_land(tiny_dataset, flip):
     root, _ = tiny_dataset

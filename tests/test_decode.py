@@ -89,6 +89,15 @@ def test_round_trip_random_poses(name):
     assert round_trip(poses, widths, M_FLIP, OUT_CROP, variant) > 60
 
 
+def test_round_trip_at_output_stride_two():
+    """The finer maps of a stride-2 network (``M`` doubled) encode and decode the same poses."""
+    variant = get_variant("kgnv2")
+    rng = np.random.default_rng(13)
+    poses = random_poses(rng, 150)
+    widths = rng.uniform(0.01, 0.08, 150)
+    assert round_trip(poses, widths, 2.0 * M_HALF, (120, 160), variant) > 100
+
+
 def test_round_trip_depth_variant():
     variant = get_variant("kgn_depth")
     rng = np.random.default_rng(12)

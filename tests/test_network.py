@@ -1,4 +1,4 @@
-"""The stride-4 encoder-decoder and its heads."""
+"""The encoder-decoder (output stride 4 or 2) and its heads."""
 
 from __future__ import annotations
 
@@ -46,6 +46,22 @@ def test_output_shapes_for_every_variant(name):
     assert {k: v.shape[1] for k, v in out.items()} == expected == head_channels(variant)
     for v in out.values():
         assert v.shape[0] == 2 and v.shape[2:] == (16, 24) and v.dtype == torch.float32
+
+
+def test_output_stride_two_adds_one_decoder_level_and_keeps_the_stride_four_weights():
+    torch.manual_seed(0)
+    four = build_network(get_variant("kgnv2"))
+    torch.manual_seed(0)
+    two = build_network(get_variant("kgnv2"), NetworkConfig(output_stride=2)).eval()
+    assert two.backbone.stride == 2 and four.backbone.stride == 4
+    with torch.no_grad():
+        out = two(torch.randn(1, 4, 64, 96))
+    assert all(v.shape[2:] == (32, 48) for v in out.values())
+    extra = set(two.state_dict()) - set(four.state_dict())
+    assert extra and all(k.startswith(("backbone.stem_lateral", "backbone.stem_smooth")) for k in extra)
+    assert set(four.state_dict()) <= set(two.state_dict())
+    with pytest.raises(ValueError, match="output_stride"):
+        NetworkConfig(output_stride=8)
 
 
 def test_heatmap_prior_and_zero_biases(net_v2):

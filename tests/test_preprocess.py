@@ -116,6 +116,19 @@ def test_input_config_validation():
     np.testing.assert_allclose(M, [[0.25, 0, 0], [0, 0.25, 0]])
 
 
+def test_output_stride_two_halves_the_cell():
+    """Stride 2 on the half-resolution input: one output cell is 4 image pixels (the paper's cell)."""
+    frame = _frame(np.random.default_rng(0))
+    x4, M4, shape4 = prepare(*frame)
+    x2, M2, shape2 = prepare(*frame, stride=2)
+    np.testing.assert_array_equal(x2.numpy(), x4.numpy())
+    np.testing.assert_allclose(M2, 2.0 * M4)
+    assert shape4 == (60, 80) and shape2 == (120, 160)
+    np.testing.assert_allclose(apply_affine(M2, np.array([[4.0 * 9 + 0.5, 0.5]])), [[9.0, 0.0]])
+    with pytest.raises(ValueError, match="output stride"):
+        output_affine(full_frame_affine((W, H)), 3)
+
+
 def test_warp_with_full_frame_affine_equals_prepare(rng):
     """Training warps reproduce the inference input on the image region."""
     rgb, depth = _frame(rng)

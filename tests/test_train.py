@@ -8,7 +8,7 @@ import torch
 from kgn_bench.environment import cpu_model
 from kgn_bench.eval.vision import held_out_evaluator
 from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model
-from kgn_bench.training.train import TrainConfigError, load_train_config, machine_label, train
+from kgn_bench.training.train import TrainConfigError, autocast_dtype, load_train_config, machine_label, train
 
 TINY = """
 [train]
@@ -99,6 +99,8 @@ def test_evaluator_runs_on_schedule_and_leaves_the_weights_alone(tmp_path, tiny_
     ("[train]\nvariant = 'kgn'\nscale_anchor = 'depth'\n", "no scale head to anchor"),
     ("[train]\nscale_anchor = 'sonar'\n", "unknown scale_anchor 'sonar'"),
     ("[train]\nassignment = 'random'\n", "unknown \\[train\\] assignment 'random'"),
+    ("[train]\nprecision = 'fp8'\n", "unknown \\[train\\] precision 'fp8'"),
+    ("[network]\noutput_stride = 8\n", "output_stride must be one of"),
 ])
 def test_bad_configs_give_one_line(tmp_path, text, message):
     p = tmp_path / "bad.toml"
@@ -106,6 +108,61 @@ def test_bad_configs_give_one_line(tmp_path, text, message):
     with pytest.raises(TrainConfigError, match=message) as e:
         load_train_config(p)
     assert "\n" not in str(e.value)
+
+
+def test_autocast_follows_the_precision_the_device_and_the_kernels(monkeypatch):
+    cpu, cuda = torch.device("cpu"), torch.device("cuda")
+    bf16, plain = frozenset({"avx2", "avx512_bf16"}), frozenset({"avx2"})
+    assert autocast_dtype(cpu, "float32", bf16) is None and autocast_dtype(cuda, "float32") is None
+    assert autocast_dtype(cpu, "bfloat16", plain) is torch.bfloat16 and autocast_dtype(cuda, "auto") is torch.bfloat16
+    monkeypatch.setenv("KGN_BENCH_KERNELS", "portable")
+    assert autocast_dtype(cpu, "auto", bf16) is None  # oneDNN capped at AVX2 emulates bfloat16
+    monkeypatch.setenv("KGN_BENCH_KERNELS", "native")
+    assert autocast_dtype(cpu, "auto", bf16) is torch.bfloat16
+    assert autocast_dtype(cpu, "auto", plain) is None
+    with pytest.raises(ValueError, match="precision"):
+        autocast_dtype(cpu, "half")
+
+
+def test_stride_two_bfloat16_run_trains_and_loads_as_a_stride_two_detector(tmp_path, tiny_dataset):
+    """A stride-2 network trained with bfloat16 autocast: finite losses, the card's precision, and a detector
+    whose maps are twice as fine as the stride-4 network's."""
+    root, _ = tiny_dataset
+    p = _config(tmp_path, root)
+    p.write_text(p.read_text().replace("lr_steps = [1]", "lr_steps = [1]\nprecision = 'bfloat16'")
+                 .replace("head_conv = 16", "head_conv = 16\noutput_stride = 2"))
+    final = train(load_train_config(p), progress=False)
+    ckpt = load_checkpoint(final)
+    assert ckpt["precision"] == "bfloat16" and ckpt["network"]["output_stride"] == 2
+    assert all(torch.isfinite(torch.tensor(v)) for k, v in ckpt["history"][0].items() if k in ("total", "hm"))
+    model = load_model(final)
+    assert model.network.output_stride == 2
+    from kgn_bench.data.format import read_view, scene_dir
+    from kgn_bench.model.preprocess import prepare
+
+    rgbd = read_view(scene_dir(root, 0), 0)
+    x, _, (ho, wo) = prepare(rgbd.rgb, rgbd.depth, model.input_config, 2)
+    with torch.no_grad():
+        out = model.net(x[None])
+    h, w = rgbd.depth.shape
+    assert out["hm"].shape[2:] == (x.shape[1] // 2, x.shape[2] // 2) and (ho, wo) == (-(-h // 4), -(-w // 4))
+
+
+def test_a_run_from_before_a_new_setting_resumes(tmp_path, tiny_dataset):
+    """A checkpoint written before ``precision`` and ``output_stride`` existed resumes at their defaults."""
+    root, _ = tiny_dataset
+    cfg = load_train_config(_config(tmp_path, root, epochs=1))
+    train(cfg, progress=False)
+    last = tmp_path / "run" / "last.pt"
+    ckpt = load_checkpoint(last)
+    del ckpt["train"]["train"]["precision"], ckpt["train"]["network"]["output_stride"]
+    torch.save(ckpt, last)
+    train(cfg, progress=False)  # accepted: nothing left to train
+    assert load_checkpoint(tmp_path / "run" / "final.pt")["epoch"] == 1
+    ckpt["train"]["train"]["lr"] = 0.5
+    torch.save(ckpt, last)
+    with pytest.raises(CheckpointError, match="different config"):
+        train(cfg, progress=False)
 
 
 def test_shipped_configs_load():

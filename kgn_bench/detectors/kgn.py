@@ -80,7 +80,8 @@ class KGNDetector:
         t = time.perf_counter()
         self.timing = {}
         try:
-            x, M, (ho, wo) = prepare(observation.rgb, observation.depth, self.model.input_config)
+            x, M, (ho, wo) = prepare(observation.rgb, observation.depth, self.model.input_config,
+                                     self.model.network.output_stride)
         except ValueError as e:
             raise DetectorError(str(e)) from None
         self.timing["preprocess"] = time.perf_counter() - t

@@ -240,7 +240,7 @@ def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | N
         f"×{train.get('lr_gamma', '?')} after epochs {train.get('lr_steps', '?')}) |",
         f"| training views | {train.get('limit') or 'all of the train split'} |",
         f"| wall time | {seconds / 60:.0f} min |",
-        f"| machine | {data.get('machine', '?')} |",
+        f"| machine | {data.get('machine', '?')}, {data.get('precision', 'float32')} forward pass |",
         f"| git commit | `{data.get('git_commit', '?')}` |",
         f"| config | `{data.get('train', {}).get('name', '?')}` |",
         f"| network | {json.dumps(data.get('network', {}))} |",

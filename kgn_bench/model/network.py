@@ -1,4 +1,4 @@
-"""The KGN / KGNv2 network: a compact encoder-decoder at output stride 4 with the reference's head layout.
+"""The KGN / KGNv2 network: a compact encoder-decoder at output stride 4 or 2 with the reference's head layout.
 
 The paper's DLA-34 with deformable convolutions is too slow for 2 CPU cores, so the backbone is
 a small ResNet-style encoder with an FPN-style decoder:
@@ -7,10 +7,13 @@ a small ResNet-style encoder with an FPN-style decoder:
   ``n`` basic residual blocks (two Conv3×3 + BN, ReLU after the sum; the first block of a stage has stride
   2 and a Conv1×1/2 + BN shortcut);
 * decoder: a 1×1 lateral convolution of every stage output to ``neck_channels``; from stride 32 down to 4,
-  ``p ← ConvBNReLU3×3(upsample₂ₓ,nearest(p) + lateral)``; the result is the stride-4 feature map.
+  ``p ← ConvBNReLU3×3(upsample₂ₓ,nearest(p) + lateral)``; the result is the stride-4 feature map. With
+  ``output_stride = 2`` the same step runs once more with the stem's output as the lateral (``stem_lateral``,
+  ``stem_smooth``), giving stride-2 features: on the half-resolution input one output cell is then 4 image
+  pixels, the paper's cell (its DLA-34 sees the full frame at stride 4).
 
-``KGNNet.backbone`` maps (B, 4, H, W) to stride-4 features (B, ``backbone.out_channels``, H/4, W/4): any
-module with that interface (a bigger backbone for GPU users) drops in under the same heads.
+``KGNNet.backbone`` maps (B, 4, H, W) to features (B, ``backbone.out_channels``, H/s, W/s) at its ``stride``
+s: any module with that interface (a bigger backbone for GPU users) drops in under the same heads.
 
 Heads (the layout of the reference implementation), each Conv3×3(C → ``head_conv``, bias) → ReLU →
 Conv1×1(→ channels): ``hm`` 9 (orientation-bin centre heatmaps, LOGITS; final bias −2.19 so the initial
@@ -28,7 +31,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kgn_bench.model.targets import NUM_BINS, OUTPUT_STRIDE
+from kgn_bench.model.targets import NUM_BINS, OUTPUT_STRIDE, OUTPUT_STRIDES
 from kgn_bench.model.variants import Variant
 
 __all__ = [
@@ -61,8 +64,9 @@ class NetworkConfig:
     """Sizes of the backbone and heads. Channel counts are multiplied by ``width_mult`` (rounded to ≥ 8).
 
     ``stem_channels``: stride-2 stem; ``stage_channels`` / ``stage_blocks``: the four stages at strides 4, 8,
-    16, 32; ``neck_channels``: decoder width = stride-4 feature channels; ``head_conv``: hidden channels of
-    each head. The defaults give ≈ 1.7 M parameters.
+    16, 32; ``neck_channels``: decoder width = output feature channels; ``head_conv``: hidden channels of
+    each head; ``output_stride``: 4 (the reference's) or 2 (one more decoder level, module docstring). The
+    defaults give ≈ 1.7 M parameters.
     """
 
     in_channels: int = 4
@@ -72,8 +76,11 @@ class NetworkConfig:
     neck_channels: int = 32
     head_conv: int = 32
     width_mult: float = 1.0
+    output_stride: int = OUTPUT_STRIDE
 
     def __post_init__(self) -> None:
+        if self.output_stride not in OUTPUT_STRIDES:
+            raise ValueError(f"output_stride must be one of {OUTPUT_STRIDES}, got {self.output_stride}")
         if len(self.stage_channels) != 4 or len(self.stage_blocks) != 4:
             raise ValueError("stage_channels and stage_blocks need 4 entries (strides 4, 8, 16, 32)")
         if min(self.stage_blocks) < 1:
@@ -112,15 +119,14 @@ class BasicBlock(nn.Module):
 
 
 class ResNetFPN(nn.Module):
-    """Residual encoder to stride 32 and top-down FPN decoder back to stride 4 (module docstring).
-
-    ``forward`` maps (B, in_channels, H, W) to (B, ``out_channels``, H/4, W/4); H, W multiples of 32.
+    """Residual encoder to stride 32 and top-down FPN decoder back to ``config.output_stride`` (module
+    docstring). ``forward`` maps (B, in_channels, H, W) to (B, ``out_channels``, H/s, W/s), s = ``stride``;
+    H, W multiples of 32.
     """
-
-    stride = OUTPUT_STRIDE
 
     def __init__(self, config: NetworkConfig) -> None:
         super().__init__()
+        self.stride = config.output_stride
         stem = config.scaled(config.stem_channels)
         chans = [config.scaled(c) for c in config.stage_channels]
         neck = config.scaled(config.neck_channels)
@@ -134,6 +140,11 @@ class ResNetFPN(nn.Module):
         self.stages = nn.ModuleList(stages)
         self.laterals = nn.ModuleList([nn.Conv2d(c, neck, 1) for c in chans])
         self.smooth = nn.ModuleList([_conv_bn_relu(neck, neck) for _ in chans[:-1]])
+        self.stem_lateral: nn.Module | None = None
+        self.stem_smooth: nn.Module | None = None
+        if self.stride == 2:
+            self.stem_lateral = nn.Conv2d(stem, neck, 1)
+            self.stem_smooth = _conv_bn_relu(neck, neck)
         self._init_weights()
 
     def _init_weights(self) -> None:
@@ -150,7 +161,7 @@ class ResNetFPN(nn.Module):
                 nn.init.zeros_(m.bn2.weight)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = self.stem(x)
+        stem = x = self.stem(x)
         feats = []
         for stage in self.stages:
             x = stage(x)
@@ -159,11 +170,14 @@ class ResNetFPN(nn.Module):
         for k in range(len(feats) - 2, -1, -1):
             p = F.interpolate(p, scale_factor=2.0, mode="nearest") + self.laterals[k](feats[k])
             p = self.smooth[k](p)
+        if self.stem_lateral is not None and self.stem_smooth is not None:
+            p = self.stem_smooth(F.interpolate(p, scale_factor=2.0, mode="nearest") + self.stem_lateral(stem))
         return p
 
 
 class KGNNet(nn.Module):
-    """Backbone + heads. ``forward(x (B, C_in, H, W))`` → dict of (B, C, H/4, W/4) tensors, ``hm`` as logits.
+    """Backbone + heads. ``forward(x (B, C_in, H, W))`` → dict of (B, C, H/s, W/s) tensors (s the backbone's
+    ``stride``), ``hm`` as logits.
 
     ``ValueError`` if ``x`` is not 4-D with ``in_channels`` channels and H, W multiples of 32.
     ``use_channels_last()`` switches the weights and inputs to the channels-last memory format (same
@@ -173,7 +187,7 @@ class KGNNet(nn.Module):
     def __init__(self, backbone: nn.Module, heads: dict[str, int], head_conv: int, in_channels: int = 4) -> None:
         super().__init__()
         if getattr(backbone, "out_channels", None) is None:
-            raise ValueError("backbone must expose out_channels (channels of its stride-4 features)")
+            raise ValueError("backbone must expose out_channels (channels of its output features)")
         self.backbone = backbone
         self.in_channels = in_channels
         self.channels_last = False

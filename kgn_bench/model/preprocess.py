@@ -7,11 +7,11 @@ Affine maps (numpy float64, 2×3, ``[x', y'] = A @ [u, v, 1]``):
 
 * ``A_in`` maps original-image pixels ``(u, v)`` to network-input pixels ``(x_in, y_in)``. It is exactly what
   the image operation does to pixel centres: the content at image pixel ``(u, v)`` lands at ``A_in @ (u, v, 1)``.
-* ``M = output_affine(A_in) = A_in / OUTPUT_STRIDE`` (every entry divided by 4) maps image pixels to output
-  coordinates ``(x_o, y_o) = (x_in / 4, y_in / 4)``, the continuous coordinates of the stride-4 output maps
-  with output cell ``(i, j)`` at the integer point ``(j, i)``. No half-cell shift is applied: output cell
-  ``(i, j)`` is the one whose integer coordinates are ``(x_in/4, y_in/4)``; what matters is only that training
-  targets and decoding use the same ``M``, which they do when both come from this module.
+* ``M = output_affine(A_in, s) = A_in / s`` (every entry divided by the network's output stride s, 4 or 2)
+  maps image pixels to output coordinates ``(x_o, y_o) = (x_in / s, y_in / s)``, the continuous coordinates of
+  the output maps with output cell ``(i, j)`` at the integer point ``(j, i)``. No half-cell shift is applied:
+  output cell ``(i, j)`` is the one whose integer coordinates are ``(x_in/s, y_in/s)``; what matters is only
+  that training targets and decoding use the same ``M``, which they do when both come from this module.
 
 Inference (``prepare``) resizes the full frame by ``input_scale`` σ with ``cv2.resize`` (σ = 0.5: 640×480 →
 320×240) and pads right/bottom to a multiple of 32. For ``cv2.resize`` pixel centres move as
@@ -54,7 +54,7 @@ import cv2
 import numpy as np
 import torch
 
-from kgn_bench.model.targets import OUTPUT_STRIDE
+from kgn_bench.model.targets import OUTPUT_STRIDE, OUTPUT_STRIDES
 
 __all__ = [
     "NUM_INPUT_CHANNELS",
@@ -131,9 +131,12 @@ def _check_size(size: tuple[int, int], name: str) -> tuple[int, int]:
     return int(size[0]), int(size[1])
 
 
-def output_affine(A_in: np.ndarray) -> np.ndarray:
-    """Image pixels → output coordinates: ``M = A_in / OUTPUT_STRIDE`` (2×3 float64), ``x_o = x_in / 4``."""
-    return _check_affine(A_in) / OUTPUT_STRIDE
+def output_affine(A_in: np.ndarray, stride: int = OUTPUT_STRIDE) -> np.ndarray:
+    """Image pixels → output coordinates: ``M = A_in / stride`` (2×3 float64), ``x_o = x_in / s`` for the
+    network's output stride ``s`` (4 or 2); ``ValueError`` for another stride."""
+    if stride not in OUTPUT_STRIDES:
+        raise ValueError(f"output stride must be one of {OUTPUT_STRIDES}, got {stride}")
+    return _check_affine(A_in) / stride
 
 
 def full_frame_affine(image_size: tuple[int, int], config: InputConfig = InputConfig()) -> np.ndarray:
@@ -259,7 +262,7 @@ def warp_inputs(
 
 
 def prepare(
-    rgb: np.ndarray, depth: np.ndarray, config: InputConfig = InputConfig()
+    rgb: np.ndarray, depth: np.ndarray, config: InputConfig = InputConfig(), stride: int = OUTPUT_STRIDE
 ) -> tuple[torch.Tensor, np.ndarray, tuple[int, int]]:
     """Inference input of one full frame.
 
@@ -269,8 +272,9 @@ def prepare(
     right/bottom to a multiple of ``config.pad_multiple``.
 
     Returns ``(x, M, (Ho, Wo))``: ``x`` (4, Hp, Wp) float32 tensor; ``M`` (2×3 float64) maps image pixels to
-    output coordinates (σ = ½: ``x_o = u/8 − 1/16``); ``(Ho, Wo) = (⌈H'/4⌉, ⌈W'/4⌉)`` is the part of the
-    (Hp/4, Wp/4) output maps that covers the resized H'×W' image (the rest covers padding).
+    the output coordinates of a network of output stride ``stride`` s (σ = ½, s = 4: ``x_o = u/8 − 1/16``);
+    ``(Ho, Wo) = (⌈H'/s⌉, ⌈W'/s⌉)`` is the part of the (Hp/s, Wp/s) output maps that covers the resized H'×W'
+    image (the rest covers padding).
     ``ValueError`` (one line) for a wrong shape or dtype, NaN/inf or negative depth, or no valid depth.
     """
     _check_rgbd(rgb, depth)
@@ -284,5 +288,5 @@ def prepare(
     hp, wp = -(-hs // m) * m, -(-ws // m) * m
     x = np.zeros((NUM_INPUT_CHANNELS, hp, wp), dtype=np.float32)
     x[:, :hs, :ws] = standardize(rgb_s, depth_s, config)
-    out_shape = (-(-hs // OUTPUT_STRIDE), -(-ws // OUTPUT_STRIDE))
-    return torch.from_numpy(x), output_affine(A), out_shape
+    M = output_affine(A, stride)
+    return torch.from_numpy(x), M, (-(-hs // stride), -(-ws // stride))

@@ -3,7 +3,7 @@
 Frames and units. Grasp poses are ``T_cam_grasp`` (4×4, OpenCV camera frame, metres; grasp frame:
 origin at the fingertip midpoint, +x the approach, z the closing axis, ``kgn_bench.grasp``). Image pixels
 ``(u, v)`` follow OpenCV (pixel centres at integers). Output coordinates ``(x_o, y_o)`` are continuous pixel
-coordinates of the stride-4 output maps, reached from image pixels by the 2×3 affine ``M``:
+coordinates of the output maps (stride 4 or 2), reached from image pixels by the 2×3 affine ``M``:
 ``[x_o, y_o] = M @ [u, v, 1]`` (resize, crop, zoom and horizontal flip).
 
 Per grasp, in order:
@@ -50,6 +50,7 @@ __all__ = [
     "MAX_GRASPS",
     "NUM_BINS",
     "OUTPUT_STRIDE",
+    "OUTPUT_STRIDES",
     "AssignedGrasps",
     "apply_affine",
     "assign_grasps",
@@ -64,7 +65,9 @@ __all__ = [
 NUM_BINS = 9
 """Orientation bins of 20° over [−90°, 90°)."""
 OUTPUT_STRIDE = 4
-"""Output maps have 1/4 of the network input resolution."""
+"""The default output stride: output maps have 1/4 of the network input resolution (the reference's)."""
+OUTPUT_STRIDES = (2, 4)
+"""The output strides the network offers (``NetworkConfig.output_stride``)."""
 MAX_GRASPS = 300
 """Target slots per image."""
 

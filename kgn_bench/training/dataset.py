@@ -33,7 +33,7 @@ from torch.utils.data import Dataset
 from kgn_bench.data.format import DatasetError, SceneAnnotation, read_split, read_view, scene_dir
 from kgn_bench.grasp import GraspSet
 from kgn_bench.model.preprocess import InputConfig, affine_for_crop, output_affine, prepare, standardize, warp_images
-from kgn_bench.model.targets import ASSIGNMENTS, OUTPUT_STRIDE, encode_targets
+from kgn_bench.model.targets import ASSIGNMENTS, OUTPUT_STRIDE, OUTPUT_STRIDES, encode_targets
 from kgn_bench.model.variants import Variant
 
 __all__ = ["AugmentConfig", "GraspViewDataset", "camera_frame_grasps"]
@@ -88,15 +88,18 @@ class GraspViewDataset(Dataset):
 
     ``__getitem__`` returns ``(x (4, H_in, W_in) float32 tensor, targets dict of tensors)`` in the format
     of ``model.targets.encode_targets`` (with the view's stored depth as the scale anchor's depth and the
-    ``assignment`` rule of ``model.targets``). ``set_epoch`` changes the augmentation draws.
+    ``assignment`` rule of ``model.targets``), for a network of output stride ``stride`` (4 or 2; the targets
+    are maps of the input size divided by it). ``set_epoch`` changes the augmentation draws.
     """
 
     def __init__(self, root: Path, split: str, variant: Variant, input_config: InputConfig | None = None,
                  augment: AugmentConfig | None = None, seed: int = 0, limit: int | None = None,
-                 cache_scenes: int = 64, assignment: str = "first") -> None:
+                 cache_scenes: int = 64, assignment: str = "first", stride: int = OUTPUT_STRIDE) -> None:
         if assignment not in ASSIGNMENTS:
             raise ValueError(f"unknown assignment {assignment!r} (known: {', '.join(ASSIGNMENTS)})")
-        self.assignment = assignment
+        if stride not in OUTPUT_STRIDES:
+            raise ValueError(f"output stride must be one of {OUTPUT_STRIDES}, got {stride}")
+        self.assignment, self.stride = assignment, stride
         self.root = Path(root)
         self.variant, self.augment, self.seed = variant, augment, seed
         self.input_config = input_config or InputConfig()
@@ -136,9 +139,9 @@ class GraspViewDataset(Dataset):
         ann = self.annotation(scene)
         rgbd = read_view(scene_dir(self.root, scene), view)
         if self.augment is None:
-            x, M, _ = prepare(rgbd.rgb, rgbd.depth, self.input_config)
+            x, M, _ = prepare(rgbd.rgb, rgbd.depth, self.input_config, self.stride)
             # targets cover the padded maps, the same shape as the network's output
-            return x.numpy(), M, (x.shape[1] // OUTPUT_STRIDE, x.shape[2] // OUTPUT_STRIDE), ann, view, rgbd.depth
+            return x.numpy(), M, (x.shape[1] // self.stride, x.shape[2] // self.stride), ann, view, rgbd.depth
         aug = self.augment
         rng = np.random.default_rng([self.seed, self.epoch, index])
         h, w = rgbd.depth.shape
@@ -155,7 +158,7 @@ class GraspViewDataset(Dataset):
             noise = np.clip(rng.normal(0.0, aug.depth_noise, depth.shape), -aug.depth_clip, aug.depth_clip)
             depth = np.where(depth > 0, depth + noise.astype(np.float32), 0.0).astype(np.float32)
         x = standardize(rgb, depth, self.input_config)
-        return x, output_affine(A), (h_in // OUTPUT_STRIDE, w_in // OUTPUT_STRIDE), ann, view, rgbd.depth
+        return x, output_affine(A, self.stride), (h_in // self.stride, w_in // self.stride), ann, view, rgbd.depth
 
     def __getitem__(self, index: int) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
         x, M, out_shape, ann, view, depth = self._sample(index)

@@ -8,7 +8,7 @@ A training config (``tasks/train_<variant>_<data>.toml``) has the sections
   (epochs between held-out evaluations; 0 = only at the end), ``eval_views`` (test views evaluated),
   ``scale_anchor`` (``none`` or ``depth``: how the scale head is parameterised, ``model.depth_anchor``) and
   ``assignment`` (``first`` or ``frontal``: which grasp a shared (cell, bin) target takes,
-  ``model.targets``);
+  ``model.targets``) and ``precision`` (``auto``, ``float32`` or ``bfloat16``: see ``autocast_dtype``);
 * ``[network]`` (``NetworkConfig``), ``[input]`` (``InputConfig``), ``[augment]`` (``AugmentConfig``),
   ``[loss]`` (``LossWeights``); omitted keys take the defaults.
 
@@ -41,6 +41,8 @@ from kgn_bench.config import parse_section, read_toml, resolve_task
 from kgn_bench.data.format import DatasetError
 from kgn_bench.environment import cpu_model
 from kgn_bench.errors import KGNBenchError
+from kgn_bench.kernels import cpu_flags
+from kgn_bench.kernels import mode as kernels_mode
 from kgn_bench.model.checkpoint import (
     CheckpointError,
     LoadedModel,
@@ -59,7 +61,13 @@ from kgn_bench.progress import Progress
 from kgn_bench.threads import available_cores
 from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset
 
-__all__ = ["HeldOutEvaluator", "TrainConfig", "TrainConfigError", "load_train_config", "machine_label", "train"]
+__all__ = ["PRECISIONS", "HeldOutEvaluator", "TrainConfig", "TrainConfigError", "autocast_dtype", "load_train_config",
+           "machine_label", "train"]
+
+PRECISIONS = ("auto", "float32", "bfloat16")
+"""The values of ``[train] precision``."""
+BF16_FLAGS = frozenset({"avx512_bf16", "amx_bf16"})
+"""CPU flags of native bfloat16 arithmetic: without them oneDNN emulates it, about 10× slower than float32."""
 
 
 class TrainConfigError(KGNBenchError, ValueError):
@@ -86,6 +94,8 @@ class TrainSettings:
     along the grasp centre's ray (``kgn_bench.model.depth_anchor``)."""
     assignment: str = "first"
     """Which grasp a (cell, bin) target takes: ``first`` (the reference) or ``frontal`` (``model.targets``)."""
+    precision: str = "auto"
+    """The forward pass's arithmetic (``autocast_dtype``): ``auto``, ``float32`` or ``bfloat16``."""
 
 
 @dataclass(frozen=True)
@@ -126,6 +136,8 @@ def load_train_config(path: Path) -> TrainConfig:
     if get_variant(t.variant).weights_variant != t.variant:
         source = get_variant(t.variant).weights_variant
         raise TrainConfigError(f"{path}: variant {t.variant!r} is decoded from {source!r} weights; train that one")
+    if t.precision not in PRECISIONS:
+        raise TrainConfigError(f"{path}: unknown [train] precision {t.precision!r} (known: {', '.join(PRECISIONS)})")
     if t.epochs < 1 or t.batch_size < 1 or not t.lr > 0 or t.workers < 0 or t.limit < 0 or t.eval_every < 0:
         raise TrainConfigError(f"{path}: epochs and batch_size must be ≥ 1, lr > 0, workers/limit/eval_every ≥ 0")
     return cfg
@@ -138,6 +150,25 @@ def machine_label(device: torch.device) -> str:
     if device.type == "cuda":
         parts.append(torch.cuda.get_device_name(device))
     return ", ".join([*parts, device.type])
+
+
+def autocast_dtype(device: torch.device, precision: str = "auto", flags: frozenset[str] | None = None
+                   ) -> torch.dtype | None:
+    """The autocast type of a training step (None = plain float32); the weights and the optimiser stay float32.
+
+    ``float32``: None; ``bfloat16``: bfloat16 on any device; ``auto``: bfloat16 on CUDA, and on a CPU whose
+    ``flags`` (default this one's) include native bfloat16 instructions when the kernels are native
+    (``KGN_BENCH_KERNELS=native``: the portable set caps oneDNN at AVX2, where bfloat16 is emulated); float32
+    otherwise. On a Zen 4 core, bfloat16 with native kernels takes a KGNv2 training step in about half the
+    time of float32 with the portable kernels (``results/perf.md``)."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+    if precision == "float32":
+        return None
+    if precision == "bfloat16" or device.type == "cuda":
+        return torch.bfloat16
+    flags = cpu_flags() if flags is None else flags
+    return torch.bfloat16 if device.type == "cpu" and kernels_mode() == "native" and BF16_FLAGS & flags else None
 
 
 def _collate(batch):
@@ -189,6 +220,7 @@ class _Run:
             "history": self.history,
             "parameters": count_parameters(net),
             "machine": machine_label(self.device),
+            "precision": str(autocast_dtype(self.device, cfg.train.precision) or torch.float32).removeprefix("torch."),
         }
         if with_optimizer:
             p["optimizer"] = self.optim.state_dict()
@@ -212,7 +244,8 @@ def _start_run(cfg: TrainConfig, device: str | None, threads: int | None) -> _Ru
     torch.manual_seed(t_cfg.seed)
 
     dataset = GraspViewDataset(data, "train", variant, cfg.input, cfg.augment, seed=t_cfg.seed,
-                               limit=t_cfg.limit or None, assignment=t_cfg.assignment)
+                               limit=t_cfg.limit or None, assignment=t_cfg.assignment,
+                               stride=cfg.network.output_stride)
     if len(dataset) < t_cfg.batch_size:
         raise DatasetError(f"{data}: {len(dataset)} training views, fewer than one batch of {t_cfg.batch_size}")
     identity = dataset_identity(data)
@@ -222,6 +255,16 @@ def _start_run(cfg: TrainConfig, device: str | None, threads: int | None) -> _Ru
     return _Run(cfg, out, data, variant, dev, loader_workers, dataset, identity, net, optim, commit)
 
 
+def _with_defaults(stored: Any) -> Any:
+    """A checkpoint's config with the settings added since it was written at their defaults (a run started
+    before a new setting existed resumes with the setting's default, which is what it trained with)."""
+    if not isinstance(stored, dict):
+        return stored
+    defaults = TrainConfig(name=str(stored.get("name", ""))).to_dict()
+    return {k: {**defaults[k], **v} if isinstance(v, dict) and isinstance(defaults.get(k), dict) else v
+            for k, v in {**defaults, **stored}.items()}
+
+
 def _resume(run: _Run) -> None:
     """Continue from ``last.pt`` if the run folder has one: weights, optimiser, completed epochs, history,
     the starting commit and torch's RNG state. A checkpoint of another config or dataset is refused."""
@@ -229,7 +272,7 @@ def _resume(run: _Run) -> None:
     if not last.exists():
         return
     ckpt = load_checkpoint(last)
-    if ckpt.get("train") != run.cfg.to_dict():
+    if _with_defaults(ckpt.get("train")) != run.cfg.to_dict():
         raise CheckpointError(f"{last} was written by a different config; use another [train] out or delete it")
     if ckpt.get("dataset", {}).get("sha256") != run.identity["sha256"]:
         raise CheckpointError(f"{last} was trained on another dataset than {run.data}")
@@ -246,6 +289,7 @@ def _train_epoch(run: _Run, epoch: int, progress: bool) -> dict[str, Any]:
     loss term over the batches."""
     t_cfg, dev = run.cfg.train, run.device
     cuda = dev.type == "cuda"
+    dtype = autocast_dtype(dev, t_cfg.precision)
     run.dataset.set_epoch(epoch)
     for group in run.optim.param_groups:
         group["lr"] = _lr_at(t_cfg, epoch)
@@ -258,7 +302,7 @@ def _train_epoch(run: _Run, epoch: int, progress: bool) -> dict[str, Any]:
     for x, targets in loader:
         x = x.to(dev, non_blocking=cuda)
         targets = {k: v.to(dev, non_blocking=cuda) for k, v in targets.items()}
-        with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
+        with torch.autocast(dev.type, dtype=dtype or torch.bfloat16, enabled=dtype is not None):
             outputs = run.net(x)
         loss, parts = kgn_loss({k: v.float() for k, v in outputs.items()}, targets, run.variant, run.cfg.loss)
         if not math.isfinite(parts["total"]):
@@ -292,10 +336,10 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, th
 
     After every ``eval_every``-th epoch and the last one, ``evaluate`` (if given; see ``HeldOutEvaluator``)
     scores the weights on ``eval_views`` test views and the epoch's history row keeps the result; without
-    it no epoch is evaluated. On the CPU, ``threads`` (default: torch's) sets the intra-op threads. On CUDA
-    the same config trains with bfloat16 autocast (mixed precision; the weights and the optimiser stay
-    float32) and at least ``min(8, cores − 1)`` data-loading processes; neither changes what a sample is,
-    since augmentation is seeded per (seed, epoch, item).
+    it no epoch is evaluated. On the CPU, ``threads`` (default: torch's) sets the intra-op threads. The
+    forward pass runs under ``autocast_dtype(device, [train] precision)``: with ``auto``, bfloat16 on CUDA and
+    on CPUs with native bfloat16 and native kernels. On CUDA at least ``min(8, cores − 1)`` data-loading
+    processes run; neither changes what a sample is, since augmentation is seeded per (seed, epoch, item).
     """
     t_cfg = cfg.train
     run = _start_run(cfg, device, threads)
