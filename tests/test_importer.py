@@ -83,7 +83,6 @@ def _finned_box():
 @pytest.mark.parametrize("mesh, config, reason", [
     (None, FAST, "holds no triangles"),
     ("nan", FAST, "non-finite"),
-    ("fin", FAST, "not a closed surface"),
     (trimesh.creation.box((0.5, 0.1, 0.1)), FAST, "more than the workspace"),
     (trimesh.creation.box((0.1, 0.1, 0.002)), FAST, "thick"),
     (trimesh.creation.box((0.25, 0.25, 0.25)), FAST, "no antipodal grasp"),
@@ -97,8 +96,6 @@ def test_bad_meshes_are_refused_and_write_nothing(tmp_path, mesh, config, reason
         v = box.vertices.copy()
         v[0, 0] = np.nan
         trimesh.Trimesh(v, box.faces, process=False).export(path)
-    elif mesh == "fin":
-        _finned_box().export(path)
     else:
         mesh.export(path)
     root = tmp_path / "lib"
@@ -106,6 +103,22 @@ def test_bad_meshes_are_refused_and_write_nothing(tmp_path, mesh, config, reason
         import_mesh(path, "bad", config, root=root)
     assert "\n" not in str(e.value)
     assert not root.exists() or _objects(root) == []
+
+
+@pytest.mark.parametrize("make, thickened", [("walled", False), ("fin", True)])
+def test_a_surface_repair_cannot_close_is_remeshed_and_says_how_far_it_moved(tmp_path, make, thickened):
+    """An inner wall (closed, non-manifold) and a fin (an open sheet on an edge): the voxel fallback makes
+    each a solid, and the manifest says why, at what pitch and within what distance of the file's surface."""
+    from test_remesh import walled_box
+
+    path = tmp_path / f"{make}.obj"
+    (walled_box() if make == "walled" else _finned_box()).export(path)
+    folder = import_mesh(path, make, FAST, root=tmp_path / "lib", preview=False)
+    m = json.loads((folder / "object.json").read_text())
+    r = m["remeshed"]
+    assert r["thickened"] is thickened and r["pitch_m"] == pytest.approx(0.002)
+    assert ("shared by more than two faces" in r["reason"]) and 0 < r["deviation_m"] < (0.008 if thickened else 0.0015)
+    assert m["grasps"]["held"] >= 8 and MeshObject(folder).mesh().is_watertight
 
 
 def test_names_are_checked(tmp_path, object_library):

@@ -59,6 +59,11 @@ def _cmd_objects_add(args) -> int:
         warn(f"{args.name} now shadows the packaged object of that name in every task that names it "
               "(remove the folder to undo)")
     m = MeshObject(folder).manifest
+    if "remeshed" in m:
+        r = m["remeshed"]
+        warn(f"{args.name}: {r['reason']}; remeshed as a {r['pitch_m'] * 1000:.1f} mm voxel solid"
+             f"{' (thin sheets thickened into walls)' if r['thickened'] else ''}: its surface lies within "
+             f"{r['deviation_m'] * 1000:.1f} mm of the file's")
     g, t = m["grasps"], m["timing_s"]
     print(f"{m['name']}: {folder} ({m['faces']} faces, {m['hulls']} hulls, {m['mass'] * 1000:.0f} g, "
           f"{g['held']} of {g['checked']} checked grasps held, {t['total']:.1f} s)")

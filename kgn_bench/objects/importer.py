@@ -5,7 +5,10 @@ The steps, each of which refuses a bad mesh with one ``ObjectError`` line and wr
 1. **read** OBJ, STL, PLY, GLB/GLTF (or anything else trimesh reads) as one mesh; a scene is concatenated;
 2. **repair**: merge seam vertices, drop degenerate and duplicate faces, fix winding and normals, fill small
    holes, cap larger open loops, unite overlapping parts; the result must be a watertight, finite, non-empty
-   solid (the antipodal rays need an inside);
+   solid (the antipodal rays need an inside). A surface that stays open or non-manifold is rebuilt by the
+   fallback (``objects.remesh.voxel_remesh`` at ``REMESH_PITCH`` in the object's final size, open sheets
+   thickened into walls), and the manifest's ``remeshed`` entry records why, the pitch and the largest
+   deviation from the file's surface, which ``kgn-bench objects add`` prints as a warning;
 3. **scale** by ``scale`` or to ``size`` (the largest extent, m); the object frame's origin is moved to the
    centre of mass, the axes are kept;
 4. **check the size**: the largest extent at most ``MAX_EXTENT`` (what the table's workspace holds), the
@@ -38,12 +41,14 @@ import numpy as np
 import trimesh
 
 from kgn_bench.gripper import GRIPPER
+from kgn_bench.objects.remesh import REMESH_PITCH, voxel_remesh
 from kgn_bench.shapes import OBJECTS
 from kgn_bench.shapes.grasp_sampling import SamplingConfig, diverse_subset, sample_antipodal_grasps
 from kgn_bench.shapes.library import NAME_PATTERN, OBJECT_SETS, packaged, user_root
 from kgn_bench.shapes.mesh_object import MANIFEST, MANIFEST_VERSION, MeshObject, ObjectError, content_hashes
 
-__all__ = ["MAX_EXTENT", "MIN_EXTENT", "MIN_GRASPS", "ImportConfig", "import_mesh", "repair_mesh"]
+__all__ = ["MAX_EXTENT", "MIN_EXTENT", "MIN_GRASPS", "ImportConfig", "UnclosedSurfaceError", "import_mesh",
+           "repair_mesh"]
 
 MAX_EXTENT = 0.30
 """Largest object extent (m): the pile box and the packed square are 30 cm, the gripper opens 20 cm."""
@@ -90,6 +95,10 @@ MAX_UNPACKED = 256_000_000
 ARCHIVE_MAGIC = (b"PK\x03\x04", b"\x1f\x8b", b"BZh", b"\xfd7zXZ", b"7z\xbc\xaf", b"Rar!")
 """Leading bytes of zip, gzip, bzip2, xz, 7z and rar files: trimesh would unpack them in memory, without a
 bound on the size, so an archive is refused before it is read."""
+
+
+class UnclosedSurfaceError(ObjectError):
+    """A surface that repair leaves open or non-manifold (the importer's fallback remeshes it)."""
 
 
 def _read(path: Path) -> trimesh.Trimesh:
@@ -165,7 +174,7 @@ def repair_mesh(mesh: trimesh.Trimesh, origin: str = "mesh") -> trimesh.Trimesh:
     consistent, small holes filled and larger boundary loops capped (``_cap_open_loops``), the connected parts
     united into one solid (manifold3d, so parts that overlap or touch along an edge stop counting twice), and
     the normals pointing out. ``ObjectError`` (naming ``origin``) when it is empty, not finite, or still not
-    closed afterwards."""
+    closed afterwards (``UnclosedSurfaceError`` when it is open or its parts cannot be united)."""
     if not np.all(np.isfinite(mesh.vertices)):
         raise ObjectError(f"{origin}: non-finite vertex coordinates")
     if len(mesh.faces) > MAX_FACES:
@@ -188,12 +197,11 @@ def repair_mesh(mesh: trimesh.Trimesh, origin: str = "mesh") -> trimesh.Trimesh:
         try:
             m = trimesh.boolean.union(parts, engine="manifold")
         except Exception as e:  # manifold3d refuses what it cannot read as a solid
-            raise ObjectError(f"{origin}: its {len(parts)} parts cannot be united ({type(e).__name__}: {e})") \
-                from None
+            raise UnclosedSurfaceError(f"{origin}: its {len(parts)} parts cannot be united "
+                                       f"({type(e).__name__}: {e})") from None
     trimesh.repair.fix_normals(m)
     if not m.is_watertight:
-        raise ObjectError(f"{origin}: not a closed surface after repair ({_defects(m)}); "
-                          "close it in a mesh editor")
+        raise UnclosedSurfaceError(f"{origin}: not a closed surface after repair ({_defects(m)})")
     if m.volume <= 0:
         raise ObjectError(f"{origin}: the repaired surface encloses no volume")
     return m
@@ -315,6 +323,23 @@ def _target(name: str, root: Path | None, overwrite: bool) -> tuple[Path, Path]:
     return root, target
 
 
+def _repaired(loaded: trimesh.Trimesh, config: ImportConfig, path: Path, say: Callable[[str], None]
+              ) -> tuple[trimesh.Trimesh, dict | None]:
+    """Step 2: the repaired mesh, or the fallback's remesh of a surface that repair cannot close, with the
+    manifest's ``remeshed`` entry (None when repair sufficed). The pitch is ``REMESH_PITCH`` at the scale
+    step 3 will apply (``config.scale``, or ``config.size`` over the file's largest extent)."""
+    try:
+        return repair_mesh(loaded, str(path)), None
+    except UnclosedSurfaceError as e:
+        reason = str(e).removeprefix(f"{path}: ")
+    scale = config.scale if config.scale is not None else (config.size / float(loaded.extents.max())
+                                                           if config.size is not None else 1.0)
+    say(f"remeshing: {reason}")
+    r = voxel_remesh(loaded, REMESH_PITCH / scale, origin=str(path), seed=config.seed)
+    return r.mesh, {"reason": reason, "pitch_m": round(r.pitch * scale, 6),
+                    "deviation_m": round(r.deviation * scale, 6), "thickened": r.thickened > 0}
+
+
 def _scale_and_centre(mesh: trimesh.Trimesh, config: ImportConfig, path: Path) -> tuple[float, np.ndarray]:
     """Steps 3-4, in place: scale the repaired mesh by ``config.scale`` or to ``config.size``, check its
     extents, and move the origin to its centre of mass (the object frame keeps the file's axes). Returns the
@@ -398,7 +423,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     source_bytes = path.read_bytes() if path.is_file() else b""
     loaded = _read(path)
     say(f"repairing {len(loaded.faces)} faces")
-    mesh = repair_mesh(loaded, str(path))
+    mesh, remeshed = _repaired(loaded, config, path, say)
     timing = {"repair": time.perf_counter() - t0}
     scale, ext = _scale_and_centre(mesh, config, path)
     rng = np.random.default_rng(config.seed)
@@ -418,6 +443,8 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
             hull.export(tmp / "collision" / f"hull_{k:02d}.ply")
         say("finding the rest poses")
         manifest = _manifest(name, path, source_bytes, config, mesh, scale, ext, len(hulls))
+        if remeshed is not None:
+            manifest["remeshed"] = remeshed
         _write_manifest(tmp, manifest)
         held, timing["verify"] = _keep_held(tmp, poses, widths, path, say)
         manifest["grasps"] = {"candidates": candidates, "checked": len(poses), "held": int(held.sum())}
