@@ -62,6 +62,18 @@ def test_tasks_name_imported_objects_and_sets(object_library, load_task_text):
         load_task_text(_task('["teapot"]'))
     with pytest.raises(ConfigError, match="unknown object set 'ycb'"):
         load_task_text(_task('"ycb"'))
+    assert load_task_text(_task('"pybullet_train:5"')).objects == ("pb_001", "pb_002", "pb_003", "pb_004", "pb_005")
+
+
+def test_the_first_objects_of_a_set():
+    """``<set>:N`` is the first N of the set's fixed order; the train split never holds a test object."""
+    train = set_names("pybullet_train")
+    assert len(train) == 900 and set_names("pybullet_train:300") == train[:300]
+    assert set_names("pybullet_test:43") == set_names("pybullet_test")
+    assert not set(train) & set(set_names("pybullet_test"))
+    for bad in ("pybullet_train:0", "pybullet_train:901", "pybullet_train:x", "pybullet_train:"):
+        with pytest.raises(ObjectError, match="how many of the set's 900 objects"):
+            set_names(bad)
 
 
 def test_the_real_object_test_set_ships_imported(monkeypatch, tmp_path):

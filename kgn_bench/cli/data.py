@@ -19,16 +19,16 @@ def add(sub) -> None:
 
 
 def _object_names(items: list[str]) -> list[str]:
-    """Object names from the command line, a packaged set's name (``pybullet_test``) expanded to its objects;
-    the packaged ones the library lacks are imported first."""
+    """Object names from the command line, a packaged set's name (``pybullet_test``, ``pybullet_train:300``)
+    expanded to its objects; the packaged ones the library lacks are imported first."""
     from kgn_bench.objects.pybullet_set import ensure_objects
     from kgn_bench.shapes import is_known
-    from kgn_bench.shapes.library import OBJECT_SETS, packaged, set_names
+    from kgn_bench.shapes.library import is_set_name, packaged, set_names
     from kgn_bench.shapes.mesh_object import ObjectError
 
     names: list[str] = []
     for item in items:
-        names += set_names(item) if item in OBJECT_SETS else [item]
+        names += set_names(item) if is_set_name(item) else [item]
     for n in names:
         if not (is_known(n) or packaged(n)):
             raise ObjectError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "

@@ -8,8 +8,10 @@ An object is a folder ``<root>/<name>/`` (``shapes.mesh_object``). The roots are
    real-object test set ``pybullet_test``, imported.
 
 A task names an object by its folder name, exactly as it names a primitive (``[objects] set = ["mug_scan"]``),
-or a whole packaged set by the set's name (``[objects] set = "pybullet_test"``, ``OBJECT_SETS``); the names of
-primitives and household objects cannot be reused.
+or a whole packaged set by the set's name (``[objects] set = "pybullet_test"``, ``OBJECT_SETS``), or the first
+``N`` objects of a set in its fixed order as ``"<set>:N"`` (``pybullet_train:300``: a reproducible part of the
+900 training objects, for a machine that cannot import them all); the names of primitives and household
+objects cannot be reused.
 
 The real-object set's split is defined here, so that a task can name it before it is imported:
 ``pybullet_data/random_urdfs`` has 1000 objects and pybullet's own grasping environment tests on the 100 whose
@@ -39,6 +41,7 @@ __all__ = [
     "PYBULLET_SPLIT_SEED",
     "PYBULLET_TEST_COUNT",
     "find_object",
+    "is_set_name",
     "library_roots",
     "list_objects",
     "load_object",
@@ -136,13 +139,25 @@ def pybullet_numbers(split: str) -> list[int]:
     raise ObjectError(f"unknown split {split!r} of the pybullet set (test, train)")
 
 
+def is_set_name(item: str) -> bool:
+    """Whether ``item`` names a packaged set or its first objects (``pybullet_train``, ``pybullet_train:300``)."""
+    return item.split(":", 1)[0] in OBJECT_SETS
+
+
 def set_names(set_name: str) -> list[str]:
-    """The object names of a packaged set (``OBJECT_SETS``), imported or not."""
-    if set_name not in OBJECT_SETS:
-        raise ObjectError(f"unknown object set {set_name!r} (known: {', '.join(OBJECT_SETS)})")
-    split = set_name.removeprefix("pybullet_")
+    """The object names of a packaged set (``OBJECT_SETS``), imported or not, in the set's fixed order; for
+    ``"<set>:N"`` the first ``N`` of them (``ObjectError`` if N is not a whole number from 1 to the set's size)."""
+    base, sep, count = set_name.partition(":")
+    if base not in OBJECT_SETS:
+        raise ObjectError(f"unknown object set {base!r} (known: {', '.join(OBJECT_SETS)})")
+    split = base.removeprefix("pybullet_")
     names = [f"pb_{n:03d}" for n in pybullet_numbers(split)]
-    return names + list(PYBULLET_EXTRAS) if split == "test" else names
+    names = names + list(PYBULLET_EXTRAS) if split == "test" else names
+    if not sep:
+        return names
+    if not count.isdigit() or not 1 <= int(count) <= len(names):
+        raise ObjectError(f"{set_name!r}: after ':' give how many of the set's {len(names)} objects to take")
+    return names[: int(count)]
 
 
 def packaged(name: str) -> bool:
