@@ -109,3 +109,10 @@ def test_the_package_runs_as_a_module_and_help_loads_nothing_heavy():
     proc = subprocess.run([sys.executable, "-m", "kgn_bench.cli", "eval", "trial", "--help"], capture_output=True,
                           text=True, check=True)
     assert "--attempt" in proc.stdout and proc.stdout.startswith("usage: kgn-bench eval trial")
+
+
+def test_objects_show_says_how_many_grasps_each_rest_pose_can_execute(object_library, tmp_path, capsys):
+    assert main(["objects", "show", "test_block", "--out", str(tmp_path / "block.png")]) == 0
+    out = capsys.readouterr().out
+    assert (tmp_path / "block.png").stat().st_size > 10_000
+    assert "per rest pose" in out and "rest pose 0: probability" in out and " grasps" in out

@@ -8,7 +8,13 @@ from kgn_bench.grasp import GraspSet
 from kgn_bench.gripper import GRIPPER, PANDA_HAND
 from kgn_bench.shapes import EVAL_DENSITY, TRAIN_DENSITY
 from kgn_bench.shapes.primitives import Cuboid, Cylinder, Sphere
-from kgn_bench.sim.collision import body_collisions, label_collisions, label_scene, proxy_hits_table
+from kgn_bench.sim.collision import (
+    body_collisions,
+    gripper_hits_table,
+    label_collisions,
+    label_scene,
+    proxy_hits_table,
+)
 from kgn_bench.sim.scene import Scene, SceneObject
 
 
@@ -59,6 +65,17 @@ def test_bottom_grasps_of_an_upright_tube_hit_the_table():
     assert bottom.sum() == 11 and np.all(g.collides[bottom])
     top = g.poses[:, 2, 0] < -0.99
     assert not np.any(g.collides[top])  # the grasped tube itself is excluded
+
+
+def test_the_whole_gripper_is_tested_against_the_table_without_a_scene():
+    """``gripper_hits_table``: the proxy at the grasp, and the palm and wrist swept from the pre-grasp."""
+    down = make_pose(np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]]), [0, 0, 0.03])  # approach −z, 3 cm up
+    side = make_pose(np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]), [0, 0, 0.05])  # approach +x, closing −y
+    low = side.copy()
+    low[2, 3] = 0.02  # the palm (5 cm tall here) and the wrist dip under the table, the 2 cm proxy does not
+    hits = gripper_hits_table(np.stack([down, side, low]), np.full(3, 0.02), back=0.10, depth=0.01)
+    np.testing.assert_array_equal(hits, [False, False, True])
+    assert not proxy_hits_table(low[None], np.array([0.02]))[0]  # only the body sees it
 
 
 def test_table_test_is_strict_at_the_surface():

@@ -113,13 +113,20 @@ def _add_show(osub) -> None:
 def _cmd_objects_show(args) -> int:
     import numpy as np
 
+    from kgn_bench.objects.coverage import REST_GRASPS, rest_pose_grasps
     from kgn_bench.shapes import sample_shape
+    from kgn_bench.shapes.mesh_object import MeshObject
     from kgn_bench.viz.objects import draw_object
 
     writable_file(args.out, "image")
     shape = sample_shape(args.name, np.random.default_rng(args.seed))
     draw_object(shape, args.out, max_grasps=args.grasps)
     print(f"wrote {args.out}")
+    if isinstance(shape, MeshObject):
+        rests = rest_pose_grasps(shape)
+        print(f"{args.name}: verified grasps the gripper can execute from above the table, per rest pose:")
+        for k, (p, n) in enumerate(rests):
+            print(f"  rest pose {k}: probability {p:.3f}, {n} grasps" + ("  (few)" if n < REST_GRASPS / 3 else ""))
     return 0
 
 

@@ -17,9 +17,11 @@ The steps, each of which refuses a bad mesh with one ``ObjectError`` line and wr
    repaired mesh and the settings, so a re-import costs nothing;
 6. **rest poses** from trimesh's quasi-static estimate (``compute_stable_poses``), the likely ones kept;
 7. **grasps**: antipodal candidates (``shapes.grasp_sampling``), at most ``verify`` of them checked in physics
-   (``sim.grasp_verify``), drawn spread over closing and approach directions
-   (``shapes.grasp_sampling.diverse_subset``); the ones that hold are the object's grasps, and there must be
-   at least ``MIN_GRASPS``;
+   (``sim.grasp_verify``): first ``objects.coverage.REST_GRASPS`` spread ones that the gripper can execute in
+   each rest pose (from above the table, ``objects.coverage``), then spread over closing and approach
+   directions (``shapes.grasp_sampling.diverse_subset``); a rest pose left with fewer than a third of that
+   holding gets as many candidates more, once. The ones that hold are the object's grasps (at least
+   ``MIN_GRASPS``), and each rest pose in the manifest says how many of them it can execute (``grasps``);
 8. **write** the folder atomically (a temporary folder renamed into place) with a preview PNG.
 
 Mass: ``mass`` if given, else ``density`` (kg/m³, default 700 as in VGN/GIGA) × volume.
@@ -41,9 +43,10 @@ import numpy as np
 import trimesh
 
 from kgn_bench.gripper import GRIPPER
+from kgn_bench.objects.coverage import REST_GRASPS, coverage_subset, executable
 from kgn_bench.objects.remesh import REMESH_PITCH, voxel_remesh
 from kgn_bench.shapes import OBJECTS
-from kgn_bench.shapes.grasp_sampling import SamplingConfig, diverse_subset, sample_antipodal_grasps
+from kgn_bench.shapes.grasp_sampling import SamplingConfig, sample_antipodal_grasps
 from kgn_bench.shapes.library import NAME_PATTERN, OBJECT_SETS, packaged, user_root
 from kgn_bench.shapes.mesh_object import MANIFEST, MANIFEST_VERSION, MeshObject, ObjectError, content_hashes
 
@@ -359,9 +362,8 @@ def _scale_and_centre(mesh: trimesh.Trimesh, config: ImportConfig, path: Path) -
 
 
 def _candidates(mesh: trimesh.Trimesh, rng: np.random.Generator, config: ImportConfig,
-                path: Path) -> tuple[np.ndarray, np.ndarray, int, float]:
-    """Step 7's candidates: antipodal grasps (object frame) and their widths, cut to at most ``config.verify``
-    spread ones; with the number sampled and the sampling's seconds."""
+                path: Path) -> tuple[np.ndarray, np.ndarray, float]:
+    """Step 7's candidates: every antipodal grasp (object frame) and its width, with the sampling's seconds."""
     t1 = time.perf_counter()
     poses, widths = sample_antipodal_grasps(mesh, rng, config.sampling)
     t_sample = time.perf_counter() - t1
@@ -369,11 +371,7 @@ def _candidates(mesh: trimesh.Trimesh, rng: np.random.Generator, config: ImportC
         raise ObjectError(f"{path}: no antipodal grasp the gripper can span (nothing between "
                           f"{config.sampling.min_extent * 1000:.0f} mm and the {GRIPPER.max_width * 100:.0f} cm "
                           "opening with both contacts inside the friction cone)")
-    candidates = len(poses)
-    if len(poses) > config.verify:
-        pick = diverse_subset(poses, config.verify, rng)
-        poses, widths = poses[pick], widths[pick]
-    return poses, widths, candidates, t_sample
+    return poses, widths, t_sample
 
 
 def _manifest(name: str, path: Path, source_bytes: bytes, config: ImportConfig, mesh: trimesh.Trimesh,
@@ -393,23 +391,38 @@ def _manifest(name: str, path: Path, source_bytes: bytes, config: ImportConfig, 
     }
 
 
-def _keep_held(tmp: Path, poses: np.ndarray, widths: np.ndarray, path: Path,
-               say: Callable[[str], None]) -> tuple[np.ndarray, float]:
-    """Step 7's check: the grasps of the half-written folder ``tmp`` that hold in physics
-    (``sim.grasp_verify``), saved to its ``grasps.npz``; returns the held mask and the check's seconds."""
+def _keep_held(tmp: Path, mesh: trimesh.Trimesh, manifest: dict, poses: np.ndarray, widths: np.ndarray,
+               config: ImportConfig, rng: np.random.Generator, path: Path, say: Callable[[str], None]
+               ) -> tuple[dict, float]:
+    """Step 7's check on the half-written folder ``tmp``: choose candidates among ``poses`` (``widths``) so
+    that every rest pose of ``manifest`` gets some it can execute (``objects.coverage``), check them in physics
+    (``sim.grasp_verify``), top up a rest pose left short once, and save the ones that hold to ``grasps.npz``;
+    each rest pose of ``manifest`` gets its count of them (``grasps``). Returns the manifest's ``grasps``
+    entry and the check's seconds."""
     from kgn_bench.sim.grasp_verify import verify_grasps
 
     np.savez(tmp / "grasps.npz", poses=np.zeros((0, 4, 4)), widths=np.zeros(0))
     shape = MeshObject(tmp)
+    ok = executable(mesh, [r["R"] for r in manifest["rest_poses"]], poses, widths)
+    checked, held = np.zeros(len(poses), dtype=bool), np.zeros(len(poses), dtype=bool)
     t1 = time.perf_counter()
-    say(f"checking {len(poses)} grasps in physics")
-    held = verify_grasps(shape, poses, widths)
+    pick = coverage_subset(ok, poses, config.verify, rng)
+    for round_ in range(2):
+        if len(pick) == 0:
+            break
+        say(f"checking {len(pick)} grasps in physics" + (" (rest poses left short)" if round_ else ""))
+        held[pick] = verify_grasps(shape, poses[pick], widths[pick])
+        checked[pick] = True
+        short = [k for k in range(len(ok)) if (ok[k] & held).sum() < REST_GRASPS / 3 and (ok[k] & ~checked).any()]
+        pick = coverage_subset(ok[short], poses, REST_GRASPS * len(short), rng, exclude=checked) if short else []
     t_verify = time.perf_counter() - t1
     if held.sum() < MIN_GRASPS:
-        raise ObjectError(f"{path}: only {int(held.sum())} of {len(poses)} checked grasps held in physics "
+        raise ObjectError(f"{path}: only {int(held.sum())} of {int(checked.sum())} checked grasps held in physics "
                           f"(at least {MIN_GRASPS} needed)")
     np.savez(tmp / "grasps.npz", poses=poses[held], widths=widths[held])
-    return held, t_verify
+    for rest, row in zip(manifest["rest_poses"], ok):
+        rest["grasps"] = int((row & held).sum())
+    return {"candidates": len(poses), "checked": int(checked.sum()), "held": int(held.sum())}, t_verify
 
 
 def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig(), root: Path | None = None,
@@ -432,7 +445,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
     hulls = _decompose(mesh, config, root / ".cache" / "coacd")
     timing["decompose"] = time.perf_counter() - t1
     say("sampling antipodal grasps")
-    poses, widths, candidates, timing["sample"] = _candidates(mesh, rng, config, path)
+    poses, widths, timing["sample"] = _candidates(mesh, rng, config, path)
     root.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=root))
     tmp.chmod(0o755)  # mkdtemp's 0700 would hide the object from workers running as another user
@@ -446,8 +459,7 @@ def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig
         if remeshed is not None:
             manifest["remeshed"] = remeshed
         _write_manifest(tmp, manifest)
-        held, timing["verify"] = _keep_held(tmp, poses, widths, path, say)
-        manifest["grasps"] = {"candidates": candidates, "checked": len(poses), "held": int(held.sum())}
+        manifest["grasps"], timing["verify"] = _keep_held(tmp, mesh, manifest, poses, widths, config, rng, path, say)
         if preview:
             from kgn_bench.viz.objects import draw_object
 

@@ -16,7 +16,7 @@ from kgn_bench.grasp import GraspSet
 from kgn_bench.gripper import GRIPPER, GripperGeometry, box_corners
 from kgn_bench.sim.scene import Scene
 
-__all__ = ["LABEL_VERSION", "body_collisions", "label_collisions", "proxy_hits_table"]
+__all__ = ["LABEL_VERSION", "body_collisions", "gripper_hits_table", "label_collisions", "proxy_hits_table"]
 
 LABEL_VERSION = 2
 """Bumped whenever a change alters collision labels; evaluation caches key on it. 2: a proxy wider than its
@@ -59,6 +59,34 @@ def label_scene(scene: Scene, density) -> list[GraspSet]:
     return out
 
 
+def _swept_boxes(gripper: GripperGeometry, back: float, fingers_open: float | None) -> list:
+    """The palm and wrist (and, given ``fingers_open``, the fingers open that wide) swept ``back`` m along the
+    approach; parts of zero size (a hand without a wrist) left out."""
+    parts = [gripper.palm_box(), gripper.wrist_box()]
+    if fingers_open is not None:
+        parts += [gripper.finger_box(+1, fingers_open), gripper.finger_box(-1, fingers_open)]
+    return [b.swept(back) for b in parts if np.all(b.half > 0)]
+
+
+def _boxes_below_table(boxes: list, poses: np.ndarray) -> np.ndarray:
+    hits = np.zeros(len(poses), dtype=bool)
+    for box in boxes:
+        hits |= box_corners(box, poses)[..., 2].min(axis=1) < 0.0
+    return hits
+
+
+def gripper_hits_table(poses: np.ndarray, widths: np.ndarray, back: float, depth: float,
+                       gripper: GripperGeometry = GRIPPER) -> np.ndarray:
+    """(N,) bool: the gripper of world grasps ``poses`` (N, 4, 4) dips below the table top z = 0: its labelling
+    proxy at the grasp (``proxy_hits_table``), or its palm and wrist where the jaws close, ``depth`` m past the
+    grasp origin along the approach, swept back ``back + depth`` m (the table half of ``body_collisions``).
+    No scene needed: what the importer asks of a grasp in each of an object's rest poses."""
+    pushed = poses.copy()
+    pushed[:, :3, 3] += depth * poses[:, :3, 0]
+    return proxy_hits_table(poses, widths, gripper) | _boxes_below_table(_swept_boxes(gripper, back + depth, None),
+                                                                         pushed)
+
+
 def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: GripperGeometry = GRIPPER,
                     fingers_open: float | None = None) -> np.ndarray:
     """(N,) bool: the palm or wrist of world grasps ``poses`` (N, 4, 4), swept along the straight approach
@@ -72,13 +100,8 @@ def body_collisions(scene: Scene, poses: np.ndarray, back: float, gripper: Gripp
     floating hand): its fingers pass outside the grasp's own width, where the proxy does not look.
     Exact scene geometry, so privileged: the oracle's, never a detector's.
     """
-    parts = [gripper.palm_box(), gripper.wrist_box()]
-    if fingers_open is not None:
-        parts += [gripper.finger_box(+1, fingers_open), gripper.finger_box(-1, fingers_open)]
-    boxes = [b.swept(back) for b in parts if np.all(b.half > 0)]
-    hits = np.zeros(len(poses), dtype=bool)
-    for box in boxes:
-        hits |= box_corners(box, poses)[..., 2].min(axis=1) < 0.0
+    boxes = _swept_boxes(gripper, back, fingers_open)
+    hits = _boxes_below_table(boxes, poses)
     with scene.proxy_only_collisions():
         scene.exclude_object_from_proxy(None)
         for k in np.flatnonzero(~hits):
