@@ -2,7 +2,7 @@
 
 import pytest
 
-from kgn_bench.bench.perf import perf_data
+from kgn_bench.bench.perf import perf_data, perf_train
 
 
 def test_perf_data_reports_views_per_second_and_the_split():
@@ -42,3 +42,13 @@ def test_perf_backends_times_each_backend_and_requires_the_same_summary(tmp_path
     assert "byte-identical in all 2 runs" in report
     with pytest.raises(PerfError, match=r"on the local pool failed .*no_such_detector"):
         perf_backends("tasks/ci_oracle.toml", detector="no_such_detector", rounds=1)
+
+
+def test_perf_train_splits_a_step_into_batch_preparation_and_the_step(tiny_dataset):
+    root, _ = tiny_dataset
+    text = perf_train(root, strides=(4, 2), precisions=("float32",), batches=2, batch_size=2)
+    rows = [line for line in text.splitlines() if line.startswith("| 4 |") or line.startswith("| 2 |")]
+    assert len(rows) == 2 and "kernels:" in text
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[1] == "float32" and all(float(c) > 0 for c in cells[2:])

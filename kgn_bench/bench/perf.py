@@ -13,7 +13,7 @@ from pathlib import Path
 from kgn_bench.data.generate import TIMING_KEYS, GenerateConfig, generate_dataset
 from kgn_bench.errors import InputError, KGNBenchError
 
-__all__ = ["PerfError", "perf_backends", "perf_data", "perf_detector", "perf_import", "perf_run"]
+__all__ = ["PerfError", "perf_backends", "perf_data", "perf_detector", "perf_import", "perf_run", "perf_train"]
 
 
 class PerfError(KGNBenchError, RuntimeError):
@@ -237,3 +237,62 @@ def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, fra
         f"median {1e3 / total:.1f} frames/s; candidates per frame: median {int(np.median(counts))}, max {max(counts)}",
     ]
     return "\n".join(lines)
+
+
+def perf_train(data: Path, variant: str = "kgnv2", strides: tuple[int, ...] = (4, 2),
+               precisions: tuple[str, ...] = ("float32", "bfloat16"), batches: int = 6, batch_size: int = 8,
+               threads: int = 1) -> str:
+    """One KGN training step, split: preparing a batch (reading the views, augmentation, targets: what the
+    data-loading process does) and the step (forward, loss, backward, Adam), for each output stride and
+    forward precision, on ``threads`` torch threads; medians over ``batches`` after one warm-up. Samples/s is
+    ``batch_size`` over the longer of the two (a loading process overlaps them) and over their sum (loading
+    in the training process, ``workers = 0``). The CPU kernels are the process's (``KGN_BENCH_KERNELS``):
+    bfloat16 is only fast with native ones on a CPU that has it (``training.train.autocast_dtype``)."""
+    import numpy as np
+    import torch
+
+    from kgn_bench.kernels import describe
+    from kgn_bench.model.losses import LossWeights, kgn_loss
+    from kgn_bench.model.network import NetworkConfig, build_network
+    from kgn_bench.model.variants import get_variant
+    from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset
+
+    torch.set_num_threads(threads)
+    v = get_variant(variant)
+    rows = []
+    for stride in strides:
+        ds = GraspViewDataset(Path(data), "train", v, augment=AugmentConfig(), seed=0, stride=stride)
+        load_ms, batch_list = [], []
+        for b in range(batches + 1):
+            t = time.perf_counter()
+            items = [ds[(b * batch_size + i) % len(ds)] for i in range(batch_size)]
+            x = torch.stack([it[0] for it in items])
+            targets = {k: torch.stack([it[1][k] for it in items]) for k in items[0][1]}
+            load_ms.append(1e3 * (time.perf_counter() - t))
+            batch_list.append((x, targets))
+        for precision in precisions:
+            torch.manual_seed(0)
+            net = build_network(v, NetworkConfig(output_stride=stride)).train()
+            optim = torch.optim.Adam(net.parameters(), lr=1e-3)
+            step_ms = []
+            for x, targets in batch_list:
+                t = time.perf_counter()
+                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=precision == "bfloat16"):
+                    out = net(x)
+                loss, _ = kgn_loss({k: o.float() for k, o in out.items()}, targets, v, LossWeights())
+                optim.zero_grad(set_to_none=True)
+                loss.backward()
+                optim.step()
+                step_ms.append(1e3 * (time.perf_counter() - t))
+            load, step = float(np.median(load_ms[1:])), float(np.median(step_ms[1:]))
+            rows.append(f"| {stride} | {precision} | {load:.0f} | {step:.0f} "
+                        f"| {1e3 * batch_size / max(load, step):.1f} | {1e3 * batch_size / (load + step):.1f} |")
+    kernels = describe()
+    return "\n".join([
+        f"{variant} training step, batch {batch_size} of 256×256 crops from {data}, {threads} torch thread(s); "
+        f"kernels: {kernels['set']}" + (f" ({kernels['reason']})" if kernels["reason"] else ""),
+        "",
+        "| output stride | forward | batch prep (ms) | step (ms) | samples/s, loader process | samples/s, in-process |",
+        "| --- | --- | --- | --- | --- | --- |",
+        *rows,
+    ])

@@ -13,7 +13,7 @@ def add(sub) -> None:
     """The ``perf`` command group."""
     perf = sub.add_parser("perf", help="speed measurements")
     psub = perf.add_subparsers(dest="perf_command", required=True, parser_class=Parser)
-    for add_command in (_add_data, _add_run, _add_detector, _add_import, _add_backends, _add_kernels):
+    for add_command in (_add_data, _add_run, _add_detector, _add_train, _add_import, _add_backends, _add_kernels):
         add_command(psub)
 
 
@@ -64,6 +64,27 @@ def _cmd_perf_detector(args) -> int:
     from kgn_bench.bench.perf import perf_detector
 
     print(perf_detector(args.variant, args.weights, frames=args.frames, threads=args.threads, data=args.data))
+    return 0
+
+
+def _add_train(psub) -> None:
+    """``kgn-bench perf train``: its arguments."""
+    ptrain = psub.add_parser("train", help="a KGN training step: batch preparation and the step, per output "
+                                           "stride and forward precision (samples/s)")
+    ptrain.add_argument("--data", type=Path, required=True, help="a PS dataset (its train split)")
+    ptrain.add_argument("--variant", default="kgnv2")
+    ptrain.add_argument("--strides", type=int, nargs="+", default=[4, 2], choices=(2, 4))
+    ptrain.add_argument("--precisions", nargs="+", default=["float32", "bfloat16"], choices=("float32", "bfloat16"))
+    ptrain.add_argument("--batches", type=int_at_least(2), default=6)
+    ptrain.add_argument("--threads", type=int_at_least(1), default=1, help="torch threads (default 1)")
+    ptrain.set_defaults(func=_cmd_perf_train)
+
+
+def _cmd_perf_train(args) -> int:
+    from kgn_bench.bench.perf import perf_train
+
+    print(perf_train(args.data, args.variant, tuple(args.strides), tuple(args.precisions), batches=args.batches,
+                     threads=args.threads))
     return 0
 
 
