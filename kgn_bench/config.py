@@ -26,10 +26,30 @@ from kgn_bench.protocols import PROTOCOLS as PROTOCOL_TABLE
 from kgn_bench.shapes import PRIMITIVES, ObjectError, is_known, known_names
 from kgn_bench.shapes.library import NAME_PATTERN, packaged, set_names
 
-__all__ = ["CAMERA_SPANS", "CLEARANCE_PROTOCOLS", "CLUTTER_PROTOCOLS", "HANDS", "NOISE_MODELS", "PROTOCOLS",
-           "RAW_SELECTOR", "SELECTOR_MODES", "CameraConfig", "ConfigError", "ExecutionConfig", "ResourceConfig",
-           "SelectorConfig", "TaskConfig", "apply_override", "apply_overrides", "load_task", "parse_section",
-           "read_toml", "resolve_task", "task_from_dict"]
+__all__ = [
+    "CAMERA_SPANS",
+    "CLEARANCE_PROTOCOLS",
+    "CLUTTER_PROTOCOLS",
+    "HANDS",
+    "NOISE_MODELS",
+    "PROTOCOLS",
+    "RAW_SELECTOR",
+    "SELECTOR_MODES",
+    "CameraConfig",
+    "ConfigError",
+    "ExecutionConfig",
+    "ResourceConfig",
+    "SelectorConfig",
+    "TaskConfig",
+    "apply_override",
+    "apply_overrides",
+    "load_task",
+    "override_tables",
+    "parse_section",
+    "read_toml",
+    "resolve_task",
+    "task_from_dict",
+]
 
 PROTOCOLS = tuple(PROTOCOL_TABLE)
 """The protocol names (``kgn_bench.protocols.PROTOCOLS`` describes each)."""
@@ -314,6 +334,28 @@ def parse_section(where: str, cls, table: Any, error: type[Exception] = ConfigEr
         if isinstance(e, KGNBenchError):
             raise error(str(e)) from None
         raise error(f"{where}: {e}") from None
+
+
+def override_tables(raw: dict[str, Any], settings: list[tuple[str, str]], where: str,
+                    error: type[Exception] = ConfigError) -> dict[str, Any]:
+    """A copy of the parsed TOML ``raw`` with each ``(section.name, text)`` of ``settings`` set: ``text`` is read
+    as a TOML value (``3``, ``1e-3``, ``true``, ``[12, 14]``, ``"frontal"``), a bare word as a string. The
+    sections' own parsing then validates it (``parse_section``), so a setting of a training config is checked
+    like the file's."""
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.items()}
+    for key, text in settings:
+        section, _, name = key.partition(".")
+        if not section or not name:
+            raise error(f"{where}: setting {key!r} must be section.name")
+        try:
+            value = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text
+        table = out.setdefault(section, {})
+        if not isinstance(table, dict):
+            raise error(f"{where}: setting {key!r}: {section} is not a section")
+        table[name] = value
+    return out
 
 
 def read_toml(path: Path, what: str, error: type[Exception] = ConfigError) -> dict[str, Any]:

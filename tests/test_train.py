@@ -171,3 +171,18 @@ def test_shipped_configs_load():
     for p in sorted(Path(__file__).parents[1].glob("tasks/train_*.toml")):
         cfg = load_train_config(p)
         assert cfg.train.variant in ("kgn", "kgnv2", "kgnv2_sbranch")
+
+
+def test_settings_override_the_file_and_are_validated_like_it(tmp_path, tiny_dataset):
+    root, _ = tiny_dataset
+    p = _config(tmp_path, root)
+    cfg = load_train_config(p, [("train.epochs", "3"), ("network.output_stride", "2"), ("train.lr_steps", "[2]"),
+                                ("train.assignment", "frontal")])
+    assert (cfg.train.epochs, cfg.network.output_stride, cfg.train.lr_steps, cfg.train.assignment) == (
+        3, 2, (2,), "frontal")
+    with pytest.raises(TrainConfigError, match="output_stride must be one of"):
+        load_train_config(p, [("network.output_stride", "3")])
+    with pytest.raises(TrainConfigError, match="unknown key 'speed'"):
+        load_train_config(p, [("train.speed", "3")])
+    with pytest.raises(TrainConfigError, match=r"must be section\.name"):
+        load_train_config(p, [("epochs", "3")])

@@ -24,7 +24,22 @@ def _add_train(sub) -> None:
                                               "file with a [vgn] section (tasks/vgn_train.toml) for VGN")
     tr.add_argument("--device", help="torch device (default: cuda when present, else cpu)")
     tr.add_argument("--threads", type=int_at_least(1), help="CPU threads for torch (default: all cores)")
+    tr.add_argument("--set", action="append", metavar="SECTION.NAME=VALUE",
+                    help="override one setting of the config, e.g. train.epochs=2 or vgn.data=data/vgn "
+                         "(repeatable; a resumed run needs the same ones)")
     tr.set_defaults(func=_cmd_train)
+
+
+def _settings(values: list[str] | None) -> list[tuple[str, str]]:
+    from kgn_bench.training.train import TrainConfigError
+
+    pairs = []
+    for setting in values or ():
+        key, sep, value = setting.partition("=")
+        if not sep:
+            raise TrainConfigError(f"--set {setting!r}: expected section.name=value")
+        pairs.append((key.strip(), value.strip()))
+    return pairs
 
 
 def _cmd_train(args) -> int:
@@ -35,7 +50,7 @@ def _cmd_train(args) -> int:
     path = resolve_task(args.config) if not Path(args.config).is_file() else Path(args.config)
     if "vgn" in read_toml(path, "training config", TrainConfigError):
         return _train_vgn(path, args)
-    cfg = load_train_config(args.config)
+    cfg = load_train_config(args.config, _settings(args.set))
     writable(Path(cfg.train.out), "training run folder")
     final = train(cfg, progress=not args.quiet, device=args.device, threads=args.threads, evaluate=held_out_evaluator)
     print(f"wrote {final}")
@@ -45,7 +60,7 @@ def _cmd_train(args) -> int:
 def _train_vgn(path: Path, args) -> int:
     from kgn_bench.training.vgn_train import VGNTrainConfigError, load_vgn_train_config, train_vgn
 
-    cfg = load_vgn_train_config(path)
+    cfg = load_vgn_train_config(path, _settings(args.set))
     if not cfg.out:
         raise VGNTrainConfigError(f"{path} [vgn]: out must name the run folder")
     writable(Path(cfg.out), "training run folder")

@@ -37,7 +37,7 @@ from typing import Any
 import torch
 from torch.utils.data import DataLoader
 
-from kgn_bench.config import parse_section, read_toml, resolve_task
+from kgn_bench.config import override_tables, parse_section, read_toml, resolve_task
 from kgn_bench.data.format import DatasetError
 from kgn_bench.environment import cpu_model
 from kgn_bench.errors import KGNBenchError
@@ -113,10 +113,13 @@ class TrainConfig:
         return json.loads(json.dumps(asdict(self)))
 
 
-def load_train_config(path: Path) -> TrainConfig:
-    """Parse and validate a training TOML file; ``TrainConfigError`` (one line) on any problem."""
+def load_train_config(path: Path, settings: list[tuple[str, str]] = ()) -> TrainConfig:
+    """Parse and validate a training TOML file, with ``settings`` (``(section.name, value)``, e.g.
+    ``("train.epochs", "2")``) set over it (``config.override_tables``); ``TrainConfigError`` (one line) on
+    any problem. A resumed run needs the same settings: they are part of the config it compares."""
     path = resolve_task(path)
-    raw = read_toml(path, "training config", TrainConfigError)
+    raw = override_tables(read_toml(path, "training config", TrainConfigError), list(settings), str(path),
+                          TrainConfigError)
     sections = {"train": TrainSettings, "network": NetworkConfig, "input": InputConfig, "augment": AugmentConfig,
                 "loss": LossWeights}
     unknown = sorted(set(raw) - set(sections))

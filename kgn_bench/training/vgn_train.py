@@ -56,7 +56,7 @@ import torch
 from torch.nn import functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from kgn_bench.config import parse_section, read_toml
+from kgn_bench.config import override_tables, parse_section, read_toml
 from kgn_bench.data.format import DatasetError
 from kgn_bench.data.vgn_format import SceneEntry, VGNManifest, read_manifest, read_scene
 from kgn_bench.errors import KGNBenchError
@@ -132,10 +132,12 @@ class VGNTrainConfig:
         return asdict(self)
 
 
-def load_vgn_train_config(path: Path) -> VGNTrainConfig:
-    """Parse a VGN training TOML (one ``[vgn]`` section); ``VGNTrainConfigError`` (one line) on any problem."""
+def load_vgn_train_config(path: Path, settings: list[tuple[str, str]] = ()) -> VGNTrainConfig:
+    """Parse a VGN training TOML (one ``[vgn]`` section), with ``settings`` (``("vgn.epochs", "2")``) set over
+    it; ``VGNTrainConfigError`` (one line) on any problem."""
     path = Path(path)
-    raw = read_toml(path, "VGN training config", VGNTrainConfigError)
+    raw = override_tables(read_toml(path, "VGN training config", VGNTrainConfigError), list(settings), str(path),
+                          VGNTrainConfigError)
     unknown = sorted(set(raw) - {"vgn"})
     if unknown:
         raise VGNTrainConfigError(f"{path}: unknown section(s) {', '.join(unknown)} (known: vgn)")
