@@ -27,6 +27,9 @@ def test_layout_and_split(tiny_dataset):
     assert sorted(train + test) == list(range(config.scenes)) and len(test) == 1
     big = GenerateConfig(scenes=1000).split()
     assert len(big[1]) == 200 and not set(big[0]) & set(big[1])
+    for bad in (dict(scenes=0), dict(views=0), dict(seed=-1)):
+        with pytest.raises(ValueError, match="scenes and views must be"):
+            GenerateConfig(**bad)
 
 
 def test_same_seed_same_files_whatever_the_worker_count(tiny_dataset, tmp_path):

@@ -80,6 +80,8 @@ class GenerateConfig:
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if self.scenes < 1 or self.views < 1 or self.seed < 0:
+            raise ValueError("scenes and views must be ≥ 1 and seed ≥ 0")
         for name in self.objects:
             if not is_known(name):
                 raise ValueError(f"unknown object {name!r}: neither built in nor imported (kgn-bench objects list)")
@@ -87,8 +89,6 @@ class GenerateConfig:
     @property
     def object_types(self) -> list[str]:
         return list(self.objects) if self.objects else list(PRIMITIVES)
-        if self.scenes < 1 or self.views < 1 or self.seed < 0:
-            raise ValueError("scenes and views must be ≥ 1 and seed ≥ 0")
 
     def manifest(self) -> dict:
         """The settings that decide the dataset's bytes, written to ``dataset.json``: a folder is resumed only
