@@ -151,3 +151,26 @@ def test_scenes_of_imported_objects(object_library, tmp_path):
     np.testing.assert_allclose(again[0].poses, ann.objects[0].grasps.poses, atol=1e-12)
     with pytest.raises(ValueError, match="unknown object 'no_such_thing'"):
         GenerateConfig(objects=("no_such_thing",))
+
+
+def test_random_appearance_and_depth_noise_change_only_what_they_are_for(tmp_path):
+    """Textures change the RGB only and depth noise the depth only: the scenes, cameras and labels stay those
+    of the plain dataset (separate random streams), and the manifest names each setting only when it is on."""
+    from kgn_bench.data.generate import generate_scene
+
+    plain = GenerateConfig(mode="multi", scenes=1, views=1, seed=5)
+    looks = GenerateConfig(mode="multi", scenes=1, views=1, seed=5, appearance="random")
+    noisy = GenerateConfig(mode="multi", scenes=1, views=1, seed=5, depth_noise=1.0)
+    a, b, c = (generate_scene(cfg, 0) for cfg in (plain, looks, noisy))
+    assert a.annotation.to_json() == b.annotation.to_json() == c.annotation.to_json()
+    va, vb, vc = a.views[0], b.views[0], c.views[0]
+    np.testing.assert_array_equal(vb.depth, va.depth)
+    np.testing.assert_array_equal(vb.mask, va.mask)
+    assert np.abs(vb.rgb.astype(int) - va.rgb.astype(int)).mean() > 5
+    np.testing.assert_array_equal(vc.rgb, va.rgb)
+    both = (va.depth > 0) & (vc.depth > 0)
+    assert 0 < np.abs(vc.depth[both] - va.depth[both]).mean() < 0.01 and (vc.depth == 0).sum() > (va.depth == 0).sum()
+    assert "appearance" not in plain.manifest() and "depth_noise" not in plain.manifest()
+    assert looks.manifest()["appearance"] == "random" and noisy.manifest()["depth_noise"] == 1.0
+    with pytest.raises(ValueError, match="appearance must be one of"):
+        GenerateConfig(appearance="marble")

@@ -51,6 +51,11 @@ def _add_generate(dsub) -> None:
     gen.add_argument("--objects", nargs="+", metavar="NAME",
                      help="object types or a set (pybullet_test) to draw from instead of the six primitives; "
                           "multi mode puts six of them in each scene")
+    gen.add_argument("--appearance", choices=("plain", "random"), default="plain",
+                     help="plain: a uniform colour per object (the paper's data); random: procedural textures and "
+                          "colours per object and for the table")
+    gen.add_argument("--depth-noise", type=float, default=0.0, metavar="S",
+                     help="strength of the benchmark camera's D435-like depth noise on the stored depth (default 0)")
     gen.set_defaults(func=_cmd_data_generate)
 
 
@@ -62,7 +67,7 @@ def _cmd_data_generate(args) -> int:
     writable(args.out)
     objects = _object_names(args.objects or [])
     config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed,
-                            objects=tuple(objects))
+                            objects=tuple(objects), appearance=args.appearance, depth_noise=args.depth_noise)
     try:
         stats = generate_dataset(config, args.out, workers=args.workers, overwrite=args.overwrite,
                                  progress=not args.quiet, backend=backend)

@@ -16,6 +16,7 @@ import shutil
 import tempfile
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,9 @@ from kgn_bench.io import atomic_write_text
 from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.shapes import PRIMITIVES, TRAIN_DENSITY, GraspDensity, is_known, sample_shape, shape_from_dims
+from kgn_bench.sim.appearance import apply_appearance, random_appearance
 from kgn_bench.sim.collision import LABEL_VERSION, label_scene
+from kgn_bench.sim.depth_noise import DepthNoise
 from kgn_bench.sim.placement import PlacementConfig, place_objects, rectify_axisymmetric, settle
 from kgn_bench.sim.render import RGBD, SceneRenderer
 from kgn_bench.sim.scene import PhysicsError, Scene, SceneObject
@@ -60,6 +63,8 @@ MAX_SCENE_ATTEMPTS = 5
 MULTI_OBJECTS = 6
 """Objects in a multi-object scene (the PS data's six primitives, one of each)."""
 TIMING_KEYS = ("settle", "annotate", "render", "write")
+APPEARANCES = ("plain", "random")
+"""``GenerateConfig.appearance``'s values."""
 
 
 @dataclass(frozen=True)
@@ -76,10 +81,20 @@ class GenerateConfig:
     placement: PlacementConfig = field(default_factory=PlacementConfig)
     objects: tuple[str, ...] = ()
     """The object types scenes draw from; empty: the PS primitives (``PRIMITIVES``)."""
+    appearance: str = "plain"
+    """``plain``: one uniform random colour per object and the grey table (the paper's data); ``random``:
+    procedural textures and colours per object and for the table (``sim.appearance``)."""
+    depth_noise: float = 0.0
+    """Strength of the benchmark camera's D435-like depth model (``sim.depth_noise.DepthNoise``) applied to the
+    stored depth; 0 = the exact render."""
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if self.appearance not in APPEARANCES:
+            raise ValueError(f"appearance must be one of {', '.join(APPEARANCES)}, got {self.appearance!r}")
+        if not (np.isfinite(self.depth_noise) and self.depth_noise >= 0):
+            raise ValueError(f"depth_noise must be ≥ 0, got {self.depth_noise}")
         if self.scenes < 1 or self.views < 1 or self.seed < 0:
             raise ValueError("scenes and views must be ≥ 1 and seed ≥ 0")
         for name in self.objects:
@@ -110,10 +125,16 @@ class GenerateConfig:
             "kernels": computed_with(),
             "object_types": self.object_types,
             "test_fraction": TEST_FRACTION,
+            # at their defaults these stay out, so that datasets made before they existed keep their identity
+            **({"appearance": self.appearance} if self.appearance != "plain" else {}),
+            **({"depth_noise": self.depth_noise} if self.depth_noise else {}),
         }
 
-    def rng(self, index: int) -> np.random.Generator:
-        return np.random.default_rng([self.seed, MODES.index(self.mode), index])
+    def rng(self, index: int, stream: int | None = None) -> np.random.Generator:
+        """Scene ``index``'s generator; ``stream`` (1: appearance, 2: depth noise) is a separate one, so that
+        turning either on leaves the scenes, cameras and labels as they were."""
+        key = [self.seed, MODES.index(self.mode), index] + ([] if stream is None else [stream])
+        return np.random.default_rng(key)
 
     def split(self) -> tuple[list[int], list[int]]:
         """Scene-wise (train, test) split: a seeded permutation, the first 20 % go to test."""
@@ -148,7 +169,11 @@ def generate_scene(config: GenerateConfig, index: int) -> GeneratedScene:
     t0 = time.perf_counter()
     for attempt in range(MAX_SCENE_ATTEMPTS):
         objects = _sample_objects(config, rng)
-        scene = Scene(objects, config.intrinsics)
+        extend = None
+        if config.appearance == "random":
+            looks = random_appearance(len(objects), config.rng(index, 1 + 10 * attempt))
+            extend = partial(apply_appearance, appearance=looks)
+        scene = Scene(objects, config.intrinsics, extend=extend)
         try:
             place_objects(scene, rng, config.placement)
             settle(scene, config.placement)
@@ -164,6 +189,10 @@ def generate_scene(config: GenerateConfig, index: int) -> GeneratedScene:
     camera_poses = config.cameras.sample(rng, config.views)
     with SceneRenderer(scene) as renderer:
         views = [renderer.render(p) for p in camera_poses]
+    if config.depth_noise:
+        noise, noise_rng = DepthNoise(config.depth_noise), config.rng(index, 2)
+        for v in views:
+            v.depth = noise.apply(v.depth, config.intrinsics.fx, noise_rng)
     t3 = time.perf_counter()
     annotation = SceneAnnotation(
         index=index,
