@@ -107,3 +107,27 @@ def test_an_import_of_a_bundled_object_remakes_its_files(monkeypatch, tmp_path):
             assert a == b
         else:
             assert (made / rel).read_bytes() == (shipped / rel).read_bytes(), rel
+
+
+def test_no_training_object_is_a_test_object_by_name_or_mesh(object_library, tmp_path, monkeypatch):
+    """The train split shares no name and no mesh file (SHA-256) with the test set, and an imported copy of a
+    test object under another name is caught by its source mesh's hash."""
+    import hashlib
+    import shutil
+
+    from kgn_bench.objects.pybullet_set import set_items
+    from kgn_bench.shapes.library import test_set_leaks
+
+    def sha(p):
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+
+    test_meshes = {sha(it.mesh) for it in set_items("test")}
+    train = set_items("train")
+    assert len(test_meshes) == 43 and not any(sha(it.mesh) in test_meshes for it in train)
+    assert test_set_leaks(["cuboid", "pb_001", "test_block"]) == []
+    assert test_set_leaks(["pb_000", "cuboid", "pb_teddy"]) == ["pb_000", "pb_teddy"]
+    shutil.copytree(library_roots()[1] / "pb_010", object_library / "my_shape")  # pb_010 renamed
+    try:
+        assert test_set_leaks(["my_shape", "test_block"]) == ["my_shape"]
+    finally:
+        shutil.rmtree(object_library / "my_shape")

@@ -186,3 +186,19 @@ def test_settings_override_the_file_and_are_validated_like_it(tmp_path, tiny_dat
         load_train_config(p, [("train.speed", "3")])
     with pytest.raises(TrainConfigError, match=r"must be section\.name"):
         load_train_config(p, [("epochs", "3")])
+
+
+def test_a_dataset_of_test_objects_is_never_trained_on(tmp_path, tiny_dataset):
+    import shutil
+
+    from kgn_bench.data.format import DatasetError
+
+    root, _ = tiny_dataset
+    leaky = tmp_path / "leaky"
+    shutil.copytree(root, leaky)
+    manifest = json.loads((leaky / "dataset.json").read_text())
+    manifest["object_types"] = ["cuboid", "pb_000"]
+    (leaky / "dataset.json").write_text(json.dumps(manifest))
+    with pytest.raises(DatasetError, match=r"real test objects \(pb_000\)"):
+        train(load_train_config(_config(tmp_path, leaky)), progress=False)
+    assert not (tmp_path / "run" / "last.pt").exists()

@@ -243,3 +243,14 @@ def test_trains_resumes_and_refuses_another_dataset(tmp_path):
 
     weights, card = export_vgn(run, "vgn_tiny", tmp_path / "ship")
     assert load_vgn_model(weights).grid == GRID and "| sha256 |" in card.read_text()
+
+
+def test_a_dataset_of_test_objects_is_never_trained_on(tmp_path):
+    from kgn_bench.data.format import DatasetError
+
+    data = tmp_path / "data"
+    _dataset(data, scenes=2)
+    finalize_dataset(data, GRID, settings={"objects": ["cuboid", "pb_mug"]})
+    with pytest.raises(DatasetError, match=r"real test objects \(pb_mug\)"):
+        train_vgn(VGNTrainConfig(data=str(data), epochs=1, batch_size=2), tmp_path / "run", threads=1, device="cpu")
+    assert not (tmp_path / "run" / "last.pt").exists()

@@ -128,14 +128,14 @@ def _add_vgn(dsub) -> None:
 def _cmd_data_vgn(args) -> int:
     from kgn_bench.data.vgn_generate import VGNDataConfig, generate_vgn_dataset
     from kgn_bench.shapes import OBJECTS, PRIMITIVES
-    from kgn_bench.shapes.library import set_names
+    from kgn_bench.shapes.library import test_set_leaks
 
     groups = {"primitives": list(PRIMITIVES), "household": [n for n in OBJECTS if n not in PRIMITIVES]}
     items = [n for item in args.objects for n in groups.get(item, [item])]
     objects = _object_names(items)
-    test = set(set_names("pybullet_test"))
-    if test & set(objects):
-        return fail(f"{', '.join(sorted(test & set(objects)))}: real test objects never go into training data")
+    leaks = test_set_leaks(objects)
+    if leaks:
+        return fail(f"{', '.join(sorted(leaks))}: real test objects (by name or mesh) never go into training data")
     backend = make_backend(args)
     writable(args.out)
     config = VGNDataConfig(scenes=args.scenes, objects=tuple(objects), grasps_per_scene=args.grasps, seed=args.seed)

@@ -23,6 +23,7 @@ them).
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 from functools import lru_cache
@@ -49,6 +50,7 @@ __all__ = [
     "packaged",
     "pybullet_numbers",
     "set_names",
+    "test_set_leaks",
     "user_root",
 ]
 
@@ -158,6 +160,25 @@ def set_names(set_name: str) -> list[str]:
     if not count.isdigit() or not 1 <= int(count) <= len(names):
         raise ObjectError(f"{set_name!r}: after ':' give how many of the set's {len(names)} objects to take")
     return names[: int(count)]
+
+
+def test_set_leaks(names: list[str] | tuple[str, ...]) -> list[str]:
+    """The objects among ``names`` that are the real-object test set (``pybullet_test``), by name or, for an
+    imported object, by the SHA-256 of the mesh file it was imported from (the manifest's ``source_sha256``
+    against the bundled test objects'): training data must hold none. Built-in shapes never leak."""
+    test = set(set_names("pybullet_test"))
+    hashes = set()
+    for name in test:
+        folder = find_object(name)
+        if folder is not None:
+            hashes.add(json.loads((folder / MANIFEST).read_text()).get("source_sha256"))
+    leaks = []
+    for name in dict.fromkeys(names):
+        folder = None if name in test else find_object(name)
+        source = json.loads((folder / MANIFEST).read_text()).get("source_sha256") if folder is not None else None
+        if name in test or (source is not None and source in hashes):
+            leaks.append(name)
+    return leaks
 
 
 def packaged(name: str) -> bool:

@@ -58,6 +58,7 @@ from kgn_bench.model.preprocess import InputConfig
 from kgn_bench.model.targets import ASSIGNMENTS
 from kgn_bench.model.variants import Variant, get_variant
 from kgn_bench.progress import Progress
+from kgn_bench.shapes.library import test_set_leaks
 from kgn_bench.threads import available_cores
 from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset
 
@@ -252,6 +253,9 @@ def _start_run(cfg: TrainConfig, device: str | None, threads: int | None) -> _Ru
     if len(dataset) < t_cfg.batch_size:
         raise DatasetError(f"{data}: {len(dataset)} training views, fewer than one batch of {t_cfg.batch_size}")
     identity = dataset_identity(data)
+    leaks = test_set_leaks(identity["manifest"].get("object_types", []))
+    if leaks:
+        raise DatasetError(f"{data}: its scenes hold real test objects ({', '.join(leaks[:5])}); never train on them")
     net = build_network(variant, cfg.network).to(dev)
     optim = torch.optim.Adam(net.parameters(), lr=t_cfg.lr)
     commit = git_commit()  # the code that starts the run (kept across resumes)

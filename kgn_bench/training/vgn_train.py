@@ -70,6 +70,7 @@ from kgn_bench.model.vgn_checkpoint import (
 )
 from kgn_bench.model.vgn_network import VGNNet, VGNOutput
 from kgn_bench.resources import weights_dir
+from kgn_bench.shapes.library import test_set_leaks
 from kgn_bench.training.train import machine_label
 
 __all__ = [
@@ -374,6 +375,10 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
         torch.set_num_threads(threads)
     torch.manual_seed(config.seed)
     manifest = read_manifest(Path(config.data))
+    leaks = test_set_leaks(manifest.settings.get("objects", []))
+    if leaks:
+        raise DatasetError(f"{config.data}: its scenes hold real test objects ({', '.join(leaks[:5])}); never "
+                           "train on them")
     train_scenes, held_scenes = split_scenes(manifest, config.held_out, config.seed, config.max_scenes)
     if not train_scenes:
         raise DatasetError(f"{config.data}: no training scene")
