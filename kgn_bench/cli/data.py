@@ -19,16 +19,18 @@ def add(sub) -> None:
 
 
 def _object_names(items: list[str]) -> list[str]:
-    """Object names from the command line, a packaged set's name (``pybullet_test``, ``pybullet_train:300``)
-    expanded to its objects; the packaged ones the library lacks are imported first."""
+    """Object names from the command line: ``primitives`` and ``household`` expand to the built-in groups, a
+    packaged set's name (``pybullet_test``, ``pybullet_train:300``) to its objects; the packaged ones the
+    library lacks are imported first."""
     from kgn_bench.objects.pybullet_set import ensure_objects
-    from kgn_bench.shapes import is_known
+    from kgn_bench.shapes import OBJECTS, PRIMITIVES, is_known
     from kgn_bench.shapes.library import is_set_name, packaged, set_names
     from kgn_bench.shapes.mesh_object import ObjectError
 
+    groups = {"primitives": list(PRIMITIVES), "household": [n for n in OBJECTS if n not in PRIMITIVES]}
     names: list[str] = []
     for item in items:
-        names += set_names(item) if is_set_name(item) else [item]
+        names += groups.get(item) or (set_names(item) if is_set_name(item) else [item])
     for n in names:
         if not (is_known(n) or packaged(n)):
             raise ObjectError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
@@ -49,8 +51,9 @@ def _add_generate(dsub) -> None:
     gen.add_argument("--out", type=Path, required=True, help="output folder")
     gen.add_argument("--overwrite", action="store_true", help="replace a dataset with other settings in --out")
     gen.add_argument("--objects", nargs="+", metavar="NAME",
-                     help="object types or a set (pybullet_test) to draw from instead of the six primitives; "
-                          "multi mode puts six of them in each scene")
+                     help="object types, groups (primitives, household) or a set (pybullet_test, "
+                          "pybullet_train:300) to draw from instead of the six primitives; multi mode puts six of "
+                          "them in each scene")
     gen.add_argument("--appearance", choices=("plain", "random"), default="plain",
                      help="plain: a uniform colour per object (the paper's data); random: procedural textures and "
                           "colours per object and for the table")
@@ -127,12 +130,9 @@ def _add_vgn(dsub) -> None:
 
 def _cmd_data_vgn(args) -> int:
     from kgn_bench.data.vgn_generate import VGNDataConfig, generate_vgn_dataset
-    from kgn_bench.shapes import OBJECTS, PRIMITIVES
     from kgn_bench.shapes.library import test_set_leaks
 
-    groups = {"primitives": list(PRIMITIVES), "household": [n for n in OBJECTS if n not in PRIMITIVES]}
-    items = [n for item in args.objects for n in groups.get(item, [item])]
-    objects = _object_names(items)
+    objects = _object_names(args.objects)
     leaks = test_set_leaks(objects)
     if leaks:
         return fail(f"{', '.join(sorted(leaks))}: real test objects (by name or mesh) never go into training data")

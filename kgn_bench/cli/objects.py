@@ -141,12 +141,19 @@ def _add_import_set(osub) -> None:
 
 def _cmd_objects_import_set(args) -> int:
     from kgn_bench.objects.pybullet_set import import_set, set_items
+    from kgn_bench.shapes.library import user_root
+    from kgn_bench.shapes.mesh_object import MANIFEST
 
-    failed = import_set(args.split, workers=args.workers, progress=not args.quiet)
     items = set_items(args.split)
+    before = sum((user_root() / it.name / MANIFEST).is_file() for it in items)  # what import_set skips
+    started = time.perf_counter()
+    failed = import_set(args.split, workers=args.workers, progress=not args.quiet)
     for name, error in failed.items():
         warn(f"{name} refused: {error}")
-    print(f"pybullet {args.split}: {len(items) - len(failed)} of {len(items)} objects in the library"
+    done = len(items) - len(failed) - before
+    rate = (f", {done} imported now in {time.perf_counter() - started:.0f} s "
+            f"({(time.perf_counter() - started) / done:.1f} s an object, {args.workers} worker(s))" if done > 0 else "")
+    print(f"pybullet {args.split}: {len(items) - len(failed)} of {len(items)} objects in the library{rate}"
           + (f", {len(failed)} refused" if failed else ""))
     return 0
 
