@@ -107,7 +107,7 @@ def _cmd_data_show(args) -> int:
     return 0
 
 
-VGN_OBJECTS = ("primitives", "household")
+VGN_OBJECTS = ("primitives", "pybullet_train:300")
 """The default training set of ``kgn-bench data vgn``: the six primitives and the eight household shapes."""
 
 
@@ -122,8 +122,8 @@ def _add_vgn(dsub) -> None:
     vgn.add_argument("--grasps", type=int_at_least(1), default=240, help="grasp positions per scene (default 240)")
     vgn.add_argument("--seed", type=int_at_least(0), default=0, help="dataset seed (default 0)")
     vgn.add_argument("--objects", nargs="+", metavar="NAME", default=list(VGN_OBJECTS),
-                     help="object types, imported objects or sets to draw from (default: primitives household); "
-                          "never the real test set")
+                     help="object types, groups, imported objects or sets to draw from (default: primitives "
+                          "pybullet_train:300, imported first if missing); never the real test set")
     vgn.add_argument("--out", type=Path, required=True, help="output folder")
     vgn.set_defaults(func=_cmd_data_vgn)
 
