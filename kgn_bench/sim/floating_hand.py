@@ -89,6 +89,7 @@ class FloatingHand:
     def __init__(self, scene: Scene, g: GripperGeometry) -> None:
         m = scene.model
         self.scene, self.g = scene, g
+        self._quats: dict[bytes, np.ndarray] = {}
         self.on_tick: Callable[[], None] | None = None
 
         def named(kind: mujoco.mjtObj, name: str) -> int:
@@ -128,10 +129,22 @@ class FloatingHand:
     def _hand_pose(self, T_world_tcp: np.ndarray) -> np.ndarray:
         return T_world_tcp @ make_pose(t=np.array([-self.g.tcp_offset, 0.0, 0.0]))
 
+    def _quat(self, R: np.ndarray) -> np.ndarray:
+        """``quat_wxyz_from_matrix(R)``, remembered for the last few matrices: a straight move and the
+        pre-check's poses keep one orientation over hundreds of targets, and the conversion was a third of
+        the data generator's time. The same bits as computing it each time."""
+        key = np.ascontiguousarray(R, dtype=float).tobytes()
+        q = self._quats.get(key)
+        if q is None:
+            if len(self._quats) >= 8:
+                self._quats.pop(next(iter(self._quats)))
+            q = self._quats[key] = quat_wxyz_from_matrix(R)
+        return q
+
     def _set_target(self, T_world_tcp: np.ndarray) -> None:
         T = self._hand_pose(T_world_tcp)
         self.scene.data.mocap_pos[self.mocap] = T[:3, 3]
-        self.scene.data.mocap_quat[self.mocap] = quat_wxyz_from_matrix(T[:3, :3])
+        self.scene.data.mocap_quat[self.mocap] = self._quat(T[:3, :3])
 
     def teleport(self, T_world_tcp: np.ndarray, opening: float | None = None) -> None:
         """Put the hand (and its target) at ``T_world_tcp``, at rest, jaws at ``opening`` (default: fully
@@ -141,7 +154,7 @@ class FloatingHand:
         self._set_target(T_world_tcp)
         a, v = self.carrier_qpos, self.carrier_qvel
         d.qpos[a : a + 3] = T[:3, 3]
-        d.qpos[a + 3 : a + 7] = quat_wxyz_from_matrix(T[:3, :3])
+        d.qpos[a + 3 : a + 7] = self._quat(T[:3, :3])
         d.qvel[v : v + 6] = 0.0
         half = (self.g.max_width if opening is None else opening) / 2.0
         d.qpos[self.finger_qpos] = half
