@@ -6,7 +6,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-__all__ = ["apply_settings", "check_workers", "fail", "make_backend", "warn", "writable", "writable_file"]
+__all__ = ["apply_settings", "check_workers", "fail", "make_backend", "setting_pairs", "warn", "writable",
+           "writable_file"]
 
 
 def fail(message: str) -> int:
@@ -66,14 +67,22 @@ def writable_file(path: Path, what: str) -> None:
     writable(path.parent if str(path.parent) else Path("."), f"folder of {what}")
 
 
-def apply_settings(task, settings: list[str] | None):
-    """``task`` with each ``section.name=value`` of ``--set`` applied (``ConfigError`` names a bad one)."""
-    from kgn_bench.config import ConfigError, apply_overrides
+def setting_pairs(settings: list[str] | None, error: type[Exception] | None = None) -> list[tuple[str, str]]:
+    """``(key, value)`` of each ``section.name=value`` given to ``--set``; ``error`` (default ``ConfigError``)
+    for one without ``=``."""
+    from kgn_bench.config import ConfigError
 
     pairs = []
     for setting in settings or ():
         key, sep, value = setting.partition("=")
         if not sep:
-            raise ConfigError(f"--set {setting!r}: expected section.name=value")
+            raise (error or ConfigError)(f"--set {setting!r}: expected section.name=value")
         pairs.append((key.strip(), value.strip()))
-    return apply_overrides(task, pairs)
+    return pairs
+
+
+def apply_settings(task, settings: list[str] | None):
+    """``task`` with each ``section.name=value`` of ``--set`` applied (``ConfigError`` names a bad one)."""
+    from kgn_bench.config import apply_overrides
+
+    return apply_overrides(task, setting_pairs(settings))

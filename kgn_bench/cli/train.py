@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import writable
+from .common import setting_pairs, writable
 from .options import int_at_least, parent, quiet_option
 
 __all__ = ["add"]
@@ -33,13 +33,7 @@ def _add_train(sub) -> None:
 def _settings(values: list[str] | None) -> list[tuple[str, str]]:
     from kgn_bench.training.train import TrainConfigError
 
-    pairs = []
-    for setting in values or ():
-        key, sep, value = setting.partition("=")
-        if not sep:
-            raise TrainConfigError(f"--set {setting!r}: expected section.name=value")
-        pairs.append((key.strip(), value.strip()))
-    return pairs
+    return setting_pairs(values, TrainConfigError)
 
 
 def _cmd_train(args) -> int:
