@@ -75,7 +75,7 @@ def main(out: Path) -> None:
                         f'[objects]\nset = {json.dumps(names)}\n[camera]\ndistance = 0.8\nelevation_deg = 60.0\n'
                         'azimuth_deg = 90.0\n')
         run = out / f"oracle_{tag}"
-        subprocess.run([sys.executable, "-m", "kgn_bench", "run", str(task), "--detector", "oracle", "--workers",
+        subprocess.run([sys.executable, "-m", "kgn_bench.cli", "run", str(task), "--detector", "oracle", "--workers",
                         "1", "--quiet", "--out", str(run)], check=True, env={**__import__("os").environ,
                                                                               "KGN_BENCH_OBJECTS": str(lib)})
         summary = json.loads((run / "summary.json").read_text())
