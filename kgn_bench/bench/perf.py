@@ -252,10 +252,11 @@ def perf_train(data: Path, variant: str = "kgnv2", strides: tuple[int, ...] = (4
     import torch
 
     from kgn_bench.kernels import describe
-    from kgn_bench.model.losses import LossWeights, kgn_loss
+    from kgn_bench.model.losses import LossWeights
     from kgn_bench.model.network import NetworkConfig, build_network
     from kgn_bench.model.variants import get_variant
     from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset
+    from kgn_bench.training.train import train_step
 
     torch.set_num_threads(threads)
     v = get_variant(variant)
@@ -274,15 +275,10 @@ def perf_train(data: Path, variant: str = "kgnv2", strides: tuple[int, ...] = (4
             torch.manual_seed(0)
             net = build_network(v, NetworkConfig(output_stride=stride)).train()
             optim = torch.optim.Adam(net.parameters(), lr=1e-3)
-            step_ms = []
+            step_ms, dtype = [], torch.bfloat16 if precision == "bfloat16" else None
             for x, targets in batch_list:
                 t = time.perf_counter()
-                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=precision == "bfloat16"):
-                    out = net(x)
-                loss, _ = kgn_loss({k: o.float() for k, o in out.items()}, targets, v, LossWeights())
-                optim.zero_grad(set_to_none=True)
-                loss.backward()
-                optim.step()
+                train_step(net, optim, x, targets, v, LossWeights(), dtype)
                 step_ms.append(1e3 * (time.perf_counter() - t))
             load, step = float(np.median(load_ms[1:])), float(np.median(step_ms[1:]))
             rows.append(f"| {stride} | {precision} | {load:.0f} | {step:.0f} "

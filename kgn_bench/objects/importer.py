@@ -326,6 +326,13 @@ def _target(name: str, root: Path | None, overwrite: bool) -> tuple[Path, Path]:
     return root, target
 
 
+def _scale(config: ImportConfig, mesh: trimesh.Trimesh) -> float:
+    """Step 3's factor: ``config.scale``, else ``config.size`` over the mesh's largest extent, else 1."""
+    if config.scale is not None:
+        return config.scale
+    return config.size / float(mesh.extents.max()) if config.size is not None else 1.0
+
+
 def _repaired(loaded: trimesh.Trimesh, config: ImportConfig, path: Path, say: Callable[[str], None]
               ) -> tuple[trimesh.Trimesh, dict | None]:
     """Step 2: the repaired mesh, or the fallback's remesh of a surface that repair cannot close, with the
@@ -335,8 +342,7 @@ def _repaired(loaded: trimesh.Trimesh, config: ImportConfig, path: Path, say: Ca
         return repair_mesh(loaded, str(path)), None
     except UnclosedSurfaceError as e:
         reason = str(e).removeprefix(f"{path}: ")
-    scale = config.scale if config.scale is not None else (config.size / float(loaded.extents.max())
-                                                           if config.size is not None else 1.0)
+    scale = _scale(config, loaded)
     say(f"remeshing: {reason}")
     r = voxel_remesh(loaded, REMESH_PITCH / scale, origin=str(path), seed=config.seed)
     return r.mesh, {"reason": reason, "pitch_m": round(r.pitch * scale, 6),
@@ -347,8 +353,7 @@ def _scale_and_centre(mesh: trimesh.Trimesh, config: ImportConfig, path: Path) -
     """Steps 3-4, in place: scale the repaired mesh by ``config.scale`` or to ``config.size``, check its
     extents, and move the origin to its centre of mass (the object frame keeps the file's axes). Returns the
     scale and the extents (m) after scaling."""
-    scale = config.scale if config.scale is not None else (config.size / float(mesh.extents.max())
-                                                           if config.size is not None else 1.0)
+    scale = _scale(config, mesh)
     mesh.apply_scale(scale)
     ext = mesh.extents
     if ext.max() > MAX_EXTENT:

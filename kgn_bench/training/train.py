@@ -63,7 +63,7 @@ from kgn_bench.threads import available_cores
 from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset
 
 __all__ = ["PRECISIONS", "HeldOutEvaluator", "TrainConfig", "TrainConfigError", "autocast_dtype", "load_train_config",
-           "machine_label", "train"]
+           "machine_label", "train", "train_step"]
 
 PRECISIONS = ("auto", "float32", "bfloat16")
 """The values of ``[train] precision``."""
@@ -173,6 +173,20 @@ def autocast_dtype(device: torch.device, precision: str = "auto", flags: frozens
         return torch.bfloat16
     flags = cpu_flags() if flags is None else flags
     return torch.bfloat16 if device.type == "cpu" and kernels_mode() == "native" and BF16_FLAGS & flags else None
+
+
+def train_step(net: KGNNet, optim: torch.optim.Optimizer, x: torch.Tensor, targets: dict[str, torch.Tensor],
+               variant: Variant, weights: LossWeights, dtype: torch.dtype | None) -> dict[str, float]:
+    """One optimisation step on a batch (on the network's device): the forward pass under autocast to ``dtype``
+    (None: float32), the loss in float32 (``model.losses.kgn_loss``), backward, the optimiser's step. Returns
+    the loss terms. ``kgn-bench perf train`` times this same function."""
+    with torch.autocast(x.device.type, dtype=dtype or torch.bfloat16, enabled=dtype is not None):
+        outputs = net(x)
+    loss, parts = kgn_loss({k: v.float() for k, v in outputs.items()}, targets, variant, weights)
+    optim.zero_grad(set_to_none=True)
+    loss.backward()
+    optim.step()
+    return parts
 
 
 def _collate(batch):
@@ -309,14 +323,9 @@ def _train_epoch(run: _Run, epoch: int, progress: bool) -> dict[str, Any]:
     for x, targets in loader:
         x = x.to(dev, non_blocking=cuda)
         targets = {k: v.to(dev, non_blocking=cuda) for k, v in targets.items()}
-        with torch.autocast(dev.type, dtype=dtype or torch.bfloat16, enabled=dtype is not None):
-            outputs = run.net(x)
-        loss, parts = kgn_loss({k: v.float() for k, v in outputs.items()}, targets, run.variant, run.cfg.loss)
+        parts = train_step(run.net, run.optim, x, targets, run.variant, run.cfg.loss, dtype)
         if not math.isfinite(parts["total"]):
             raise FloatingPointError(f"loss became {parts['total']} in epoch {epoch + 1}; lower [train] lr")
-        run.optim.zero_grad(set_to_none=True)
-        loss.backward()
-        run.optim.step()
         for k, v in parts.items():
             sums[k] = sums.get(k, 0.0) + v
         bar.update(1, " ".join(f"{k} {v:.3f}" for k, v in parts.items()))
