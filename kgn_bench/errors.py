@@ -10,7 +10,15 @@ called with arguments its caller should never have passed), never a user's mista
 
 from __future__ import annotations
 
-__all__ = ["InputError", "KGNBenchError", "OutputError"]
+import sys
+
+__all__ = ["InputError", "KGNBenchError", "OutputError", "warn"]
+
+
+def warn(message: str) -> None:
+    """Print ``kgn-bench: warning: <message>`` as one line on stderr: something the user should know that does
+    not stop the command (the error's counterpart, for any layer)."""
+    sys.stderr.write(f"kgn-bench: warning: {message}\n")
 
 
 class KGNBenchError(Exception):

@@ -22,6 +22,7 @@ __all__ = [
     "matrix_from_rotvec",
     "project",
     "quat_wxyz_from_matrix",
+    "quats_wxyz_from_matrices",
     "rot_x",
     "rot_y",
     "rot_z",
@@ -145,6 +146,13 @@ def quat_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (w, x, y, z), w ≥ 0 (MuJoCo's order), of a rotation matrix (scipy)."""
     q = Rotation.from_matrix(np.asarray(R, dtype=float)).as_quat(canonical=True, scalar_first=True)
     return q / np.linalg.norm(q)
+
+
+def quats_wxyz_from_matrices(R: np.ndarray) -> np.ndarray:
+    """(N, 4): ``quat_wxyz_from_matrix`` of each of the (N, 3, 3) rotation matrices ``R``, bit for bit, in
+    one scipy call (a per-matrix call costs about 0.15 ms, most of it scipy's overhead)."""
+    q = Rotation.from_matrix(np.asarray(R, dtype=float).reshape(-1, 3, 3)).as_quat(canonical=True, scalar_first=True)
+    return np.stack([row / np.linalg.norm(row) for row in q]) if len(q) else q
 
 
 def matrix_from_quat_wxyz(q: np.ndarray) -> np.ndarray:

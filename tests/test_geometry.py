@@ -9,6 +9,7 @@ from kgn_bench.geometry import (
     matrix_from_quat_wxyz,
     project,
     quat_wxyz_from_matrix,
+    quats_wxyz_from_matrices,
     rot_x,
     rot_y,
     rot_z,
@@ -45,6 +46,13 @@ def test_quaternion_round_trip(rng):
         R = _random_rotation(rng)
         np.testing.assert_allclose(matrix_from_quat_wxyz(quat_wxyz_from_matrix(R)), R, atol=1e-12)
     assert quat_wxyz_from_matrix(rot_x(np.pi))[0] >= 0
+
+
+def test_batched_quaternions_are_the_single_ones_bit_for_bit(rng):
+    R = np.stack([_random_rotation(rng) for _ in range(200)] + [rot_x(np.pi), np.eye(3)])
+    batch = quats_wxyz_from_matrices(R)
+    assert np.array_equal(batch, np.stack([quat_wxyz_from_matrix(r) for r in R]))
+    assert quats_wxyz_from_matrices(np.zeros((0, 3, 3))).shape == (0, 4)
 
 
 def test_pose_inverse_and_rotation_angle(rng):

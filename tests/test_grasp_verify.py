@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from kgn_bench.geometry import make_pose
+from kgn_bench.geometry import make_pose, rotation_angle
+from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes import EVAL_DENSITY, PRIMITIVES
-from kgn_bench.sim.grasp_verify import ShakeTest, verify_grasps
+from kgn_bench.sim.grasp_verify import ShakeTest, _shake_rotations, _shake_targets, verify_grasps
 
 
 def _cuboid():
@@ -59,3 +60,19 @@ def test_a_gripper_that_starts_inside_the_object_fails():
     assert not verify_grasps(shape, deep, g.widths[:1])[0]
     lax = ShakeTest(max_start_penetration=0.1)
     assert verify_grasps(shape, deep, g.widths[:1], lax)[0]
+
+
+def test_the_shake_moves_the_hand_by_its_amplitude_about_the_grasp():
+    """The hand's targets: 3 translation cycles of ±shake_m along the grasp's axes (its rotation kept), then 3
+    turns of ±shake_deg about them (the TCP kept in place); every target is the grasp moved that much."""
+    test = ShakeTest()
+    T_grasp = make_pose(_cuboid().grasps(EVAL_DENSITY).poses[0][:3, :3], np.array([0.1, -0.2, 1.0]))
+    targets = _shake_targets(T_grasp, test, _shake_rotations(test, 150))
+    assert targets.shape == (900, 4, 4)
+    tcp = targets @ make_pose(t=np.array([GRIPPER.tcp_offset, 0.0, 0.0]))
+    moved = np.linalg.norm(tcp[:, :3, 3] - T_grasp[:3, 3], axis=1)
+    turned = np.array([rotation_angle(T[:3, :3], T_grasp[:3, :3]) for T in tcp])
+    assert np.isclose(moved[:450].max(), test.shake_m, rtol=1e-3)
+    assert np.allclose(turned[:450], 0.0, atol=1e-7)
+    assert np.allclose(moved[450:], 0.0, atol=1e-12)
+    assert np.isclose(np.rad2deg(turned[450:].max()), test.shake_deg, rtol=1e-3)

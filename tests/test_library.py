@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from kgn_bench.config import ConfigError, load_task
@@ -17,6 +18,7 @@ from kgn_bench.shapes.library import (
     packaged,
     pybullet_numbers,
     set_names,
+    shadowed,
 )
 from kgn_bench.shapes.mesh_object import MANIFEST, ObjectError
 
@@ -107,6 +109,10 @@ def test_an_import_of_a_bundled_object_remakes_its_files(monkeypatch, tmp_path):
             assert a == b
         else:
             assert (made / rel).read_bytes() == (shipped / rel).read_bytes(), rel
+    assert shadowed(["pb_000", "pb_010", "cuboid"]) == {}  # the same content: nothing to warn about
+    grasps = np.load(made / "grasps.npz")
+    np.savez(made / "grasps.npz", poses=grasps["poses"][:-1], widths=grasps["widths"][:-1])
+    assert shadowed(["pb_000", "pb_010"]) == {"pb_000": made}
 
 
 def test_no_training_object_is_a_test_object_by_name_or_mesh(object_library, tmp_path, monkeypatch):

@@ -570,3 +570,30 @@ def test_a_user_detectors_fingerprint_is_recorded_and_checked(tmp_path, capsys, 
     monkeypatch.setattr(spoilt_detector.EveryFifthBlind, "fingerprint", "weights-v2", raising=False)
     assert main(argv) == 2
     assert "the fingerprint of detector spoilt_detector:EveryFifthBlind changed" in capsys.readouterr().err
+
+
+def test_a_run_on_a_bundled_object_shadowed_by_other_content_warns(tmp_path, monkeypatch, capsys):
+    """A user's library searched first can hold a stale re-import of a bundled test object: the run goes on
+    (an object added with --overwrite is meant to shadow), with a warning naming it."""
+    import numpy as np
+
+    from kgn_bench.shapes.library import library_roots
+    from kgn_bench.shapes.mesh_object import content_hashes
+
+    user = tmp_path / "lib"
+    monkeypatch.setenv("KGN_BENCH_OBJECTS", str(user))
+    shutil.copytree(library_roots()[1] / "pb_duck", user / "pb_duck")
+    task = tmp_path / "t.toml"
+    task.write_text('[task]\nname = "ducks"\nprotocol = "single_object"\ntrials = 1\n[objects]\nset = ["pb_duck"]\n')
+    argv = ["run", str(task), "--detector", "oracle", "--out", str(tmp_path / "run"), "--quiet"]
+    assert main(argv) == 0
+    assert "warning" not in capsys.readouterr().err  # a copy with the same content is no concern
+    grasps = user / "pb_duck" / "grasps.npz"
+    with np.load(grasps) as g:
+        np.savez(grasps, poses=g["poses"][:-1], widths=g["widths"][:-1])
+    manifest = json.loads((user / "pb_duck" / "object.json").read_text())
+    manifest["files_sha256"] = content_hashes(user / "pb_duck")
+    (user / "pb_duck" / "object.json").write_text(json.dumps(manifest))
+    assert main([*argv[:5], str(tmp_path / "run2"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: task ducks: 1 bundled object(s) are shadowed by other content in {user} (pb_duck)" in err

@@ -38,13 +38,13 @@ from typing import Any
 
 from kgn_bench.config import TaskConfig
 from kgn_bench.environment import environment
-from kgn_bench.errors import KGNBenchError, OutputError
+from kgn_bench.errors import KGNBenchError, OutputError, warn
 from kgn_bench.io import atomic_write_text, describe_os_error
 from kgn_bench.objects.pybullet_set import ensure_objects
 from kgn_bench.pool import LOCAL, Backend, run_jobs
 from kgn_bench.progress import Progress
 from kgn_bench.protocols import protocol
-from kgn_bench.shapes.library import find_object
+from kgn_bench.shapes.library import find_object, shadowed
 from kgn_bench.shapes.mesh_object import check_object
 from kgn_bench.threads import pin_worker_threads, trial_threads
 
@@ -388,7 +388,8 @@ def _check_runs(runs: list[tuple[TaskConfig, str]], workers: int, progress: bool
     """Every check made before anything is written, for runs of (task, detector): each detector builds (an
     unknown name, a constructor that raises or weights that do not load stop here, in one line), each task's
     packaged objects are imported, each imported object's folder is intact (``check_object``), each camera
-    sees the workspace. Returns the built detectors by name."""
+    sees the workspace; a bundled object that the user's library shadows with other content is a warning.
+    Returns the built detectors by name."""
     built = {detector: build_detector(detector) for detector in dict.fromkeys(d for _, d in runs)}
     for task in {t.name: t for t, _ in runs}.values():
         ensure_objects(task.objects, workers=workers, progress=progress)  # packaged objects import on first use
@@ -396,6 +397,9 @@ def _check_runs(runs: list[tuple[TaskConfig, str]], workers: int, progress: bool
             if (folder := find_object(name)) is not None:
                 check_object(folder)
         check_cameras(task)
+        if mine := shadowed(task.objects):
+            warn(f"task {task.name}: {len(mine)} bundled object(s) are shadowed by other content in "
+                 f"{next(iter(mine.values())).parent} ({', '.join(mine)}); the run uses those copies")
     return built
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from kgn_bench.errors import warn
+
 __all__ = ["apply_settings", "check_workers", "fail", "make_backend", "setting_pairs", "warn", "writable",
            "writable_file"]
 
@@ -14,11 +16,6 @@ def fail(message: str) -> int:
     """Print ``kgn-bench: error: <message>`` as one line; returns the exit status of a user error, 2."""
     sys.stderr.write(f"kgn-bench: error: {message}\n")
     return 2
-
-
-def warn(message: str) -> None:
-    """Print ``kgn-bench: warning: <message>`` as one line."""
-    sys.stderr.write(f"kgn-bench: warning: {message}\n")
 
 
 def make_backend(args):

@@ -50,6 +50,7 @@ __all__ = [
     "packaged",
     "pybullet_numbers",
     "set_names",
+    "shadowed",
     "test_set_leaks",
     "user_root",
 ]
@@ -112,16 +113,48 @@ def _folder_sha256(folder: Path, stamps: tuple[tuple[str, int, int], ...]) -> st
     return h.hexdigest()
 
 
+@lru_cache(maxsize=1024)
+def _made_sha256(folder: Path, stamps: tuple[tuple[str, int, int], ...]) -> str:
+    """Like ``_folder_sha256``, with the manifest's stage times left out: what an import makes, not how long
+    it took."""
+    h = hashlib.sha256()
+    for rel, _, _ in stamps:
+        data = (folder / rel).read_bytes()
+        if rel == MANIFEST:
+            manifest = json.loads(data)
+            manifest.pop("timing_s", None)
+            data = json.dumps(manifest, sort_keys=True).encode()
+        h.update(rel.encode() + b"\0")
+        h.update(hashlib.sha256(data).digest())
+    return h.hexdigest()
+
+
+def _stamps(folder: Path) -> tuple[tuple[str, int, int], ...]:
+    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "preview.png")
+    return tuple((p.relative_to(folder).as_posix(), p.stat().st_mtime_ns, p.stat().st_size) for p in files)
+
+
+def shadowed(names: list[str] | tuple[str, ...]) -> dict[str, Path]:
+    """The objects among ``names`` that the user's library holds with other content than the bundled copy of
+    the same name (the stage times of the manifest aside), by the folder tasks get (the user's, searched
+    first): a re-import by an older version, or an object added with ``--overwrite``. Runs on them are other
+    experiments than the shipped figures."""
+    bundled = library_roots()[-1]
+    out: dict[str, Path] = {}
+    for name in dict.fromkeys(names):
+        mine, theirs = user_root() / name, bundled / name
+        if (mine / MANIFEST).is_file() and (theirs / MANIFEST).is_file():
+            if _made_sha256(mine, _stamps(mine)) != _made_sha256(theirs, _stamps(theirs)):
+                out[name] = mine
+    return out
+
+
 def object_sha256(name: str) -> str | None:
     """SHA-256 of an imported object's content: every file of its folder (manifest, grasps, collision hulls,
     visual mesh; not the preview picture), by relative path; None for a built-in shape. Two runs that name
     the same object with other content are different experiments (``bench.runner.run_identity``)."""
     folder = find_object(name)
-    if folder is None:
-        return None
-    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "preview.png")
-    stamps = tuple((p.relative_to(folder).as_posix(), p.stat().st_mtime_ns, p.stat().st_size) for p in files)
-    return _folder_sha256(folder, stamps)
+    return None if folder is None else _folder_sha256(folder, _stamps(folder))
 
 
 PYBULLET_SPLIT_SEED = 0

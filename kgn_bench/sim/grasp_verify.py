@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from kgn_bench.execution import GRASP_DEPTH as APPROACH_DEPTH
-from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix
+from kgn_bench.geometry import make_pose, quat_wxyz_from_matrix, quats_wxyz_from_matrices
 from kgn_bench.gripper import GRIPPER
 from kgn_bench.shapes.base import Shape
 from kgn_bench.sim.floating_hand import add_floating_hand
@@ -99,6 +99,15 @@ class _Rig:
             self.data.qpos[a : a + 3] = T_world_hand[:3, 3]
             self.data.qpos[a + 3 : a + 7] = q
 
+    def follow(self, T_world_hands: np.ndarray) -> None:
+        """Step once per target of ``T_world_hands`` (K, 4, 4), the mocap target moved there before each step
+        (as ``set_hand`` then ``step(1)``, the quaternions converted in one batch)."""
+        quats = quats_wxyz_from_matrices(T_world_hands[:, :3, :3])
+        for T, q in zip(T_world_hands, quats):
+            self.data.mocap_pos[self.mocap] = T[:3, 3]
+            self.data.mocap_quat[self.mocap] = q
+            self.step(1)
+
     def object_in_hand(self) -> np.ndarray:
         """The object origin in the hand frame (m)."""
         R = self.data.xmat[self.hand].reshape(3, 3)
@@ -111,13 +120,38 @@ class _Rig:
             raise PhysicsError(f"grasp check: MuJoCo fatal error ({e})") from None
 
 
-def _axis_rotation(axis: int, angle: float) -> np.ndarray:
-    v = np.zeros(3)
-    v[axis] = angle
-    return Rotation.from_rotvec(v).as_matrix()
+def _shake_rotations(test: ShakeTest, n_cycle: int) -> np.ndarray:
+    """(3·n_cycle, 3, 3): the shake's turns about the grasp's x, y and z axes in turn, one sine cycle of
+    amplitude ``shake_deg`` each, sampled at the end of each of ``n_cycle`` steps."""
+    phase = np.sin(2.0 * np.pi * np.arange(1, n_cycle + 1) / n_cycle)
+    rotvecs = np.zeros((3 * n_cycle, 3))
+    for axis in range(3):
+        rotvecs[axis * n_cycle : (axis + 1) * n_cycle, axis] = np.deg2rad(test.shake_deg) * phase
+    return Rotation.from_rotvec(rotvecs).as_matrix()
 
 
-def _check_one(rig: _Rig, T_obj_grasp: np.ndarray, width: float, test: ShakeTest) -> bool:
+def _shake_targets(T_grasp: np.ndarray, test: ShakeTest, turns: np.ndarray) -> np.ndarray:
+    """(6·n_cycle, 4, 4): the hand's targets ``T_world_hand`` through the shake of ``T_grasp`` (world frame):
+    ``shake_m`` along the grasp's x, y, z in turn, then the ``turns`` (``_shake_rotations``) about them."""
+    n_cycle = len(turns) // 3
+    phase = np.sin(2.0 * np.pi * np.arange(1, n_cycle + 1) / n_cycle)
+    back = make_pose(t=np.array([-GRIPPER.tcp_offset, 0.0, 0.0]))
+    targets = []
+    for axis in range(3):
+        for s in phase:
+            offset = np.zeros(3)
+            offset[axis] = test.shake_m * s
+            T = T_grasp.copy()
+            T[:3, 3] += T_grasp[:3, :3] @ offset
+            targets.append(T @ back)
+    for turn in turns:
+        T = T_grasp.copy()
+        T[:3, :3] = T_grasp[:3, :3] @ turn
+        targets.append(T @ back)
+    return np.array(targets)
+
+
+def _check_one(rig: _Rig, T_obj_grasp: np.ndarray, width: float, test: ShakeTest, turns: np.ndarray) -> bool:
     m, d = rig.model, rig.data
     mujoco.mj_resetData(m, d)
     d.qpos[rig.obj_qpos : rig.obj_qpos + 3] = _START
@@ -143,22 +177,7 @@ def _check_one(rig: _Rig, T_obj_grasp: np.ndarray, width: float, test: ShakeTest
     ref = rig.object_in_hand()
     m.opt.gravity[:] = 9.81 * T_grasp[:3, 0]
     rig.step(max(1, int(test.hold_s / dt)))
-    n_cycle = max(2, int(test.shake_period_s / dt))
-    phase = np.sin(2.0 * np.pi * np.arange(1, n_cycle + 1) / n_cycle)
-    for axis in range(3):
-        for s in phase:
-            offset = np.zeros(3)
-            offset[axis] = test.shake_m * s
-            T = T_grasp.copy()
-            T[:3, 3] += T_grasp[:3, :3] @ offset
-            rig.set_hand(T @ make_pose(t=np.array([-GRIPPER.tcp_offset, 0.0, 0.0])))
-            rig.step(1)
-    for axis in range(3):
-        for s in phase:
-            T = T_grasp.copy()
-            T[:3, :3] = T_grasp[:3, :3] @ _axis_rotation(axis, np.deg2rad(test.shake_deg) * s)
-            rig.set_hand(T @ make_pose(t=np.array([-GRIPPER.tcp_offset, 0.0, 0.0])))
-            rig.step(1)
+    rig.follow(_shake_targets(T_grasp, test, turns))
     if not (np.all(np.isfinite(d.qpos)) and d.qpos[rig.fingers].sum() >= test.min_opening):
         return False
     return bool(np.linalg.norm(rig.object_in_hand() - ref) < test.max_slip_m)
@@ -168,10 +187,11 @@ def verify_grasps(shape: Shape, poses: np.ndarray, widths: np.ndarray, test: Sha
     """(N,) bool: which grasps ``poses`` (N, 4, 4, object frame) with ``widths`` (N,) hold ``shape`` through the
     close-hold-shake check (module doc). A grasp whose simulation faults counts as not holding."""
     rig = _Rig(shape)
+    turns = _shake_rotations(test, max(2, int(test.shake_period_s / rig.model.opt.timestep)))
     held = np.zeros(len(poses), dtype=bool)
     for i, (T, w) in enumerate(zip(poses, widths)):
         try:
-            held[i] = _check_one(rig, T, float(w), test)
+            held[i] = _check_one(rig, T, float(w), test, turns)
         except PhysicsError:
             held[i] = False
     return held
