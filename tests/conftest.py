@@ -13,6 +13,22 @@ import pytest
 from kgn_bench.data.generate import GenerateConfig, generate_dataset
 
 
+@pytest.fixture(scope="session", autouse=True)
+def scene_cache(tmp_path_factory):
+    """The settled-scene cache (``bench.scene_cache``) of this test session: empty at its start, never the
+    user's."""
+    import os
+
+    root = tmp_path_factory.mktemp("scene_cache")
+    old = os.environ.get("KGN_BENCH_SCENE_CACHE")
+    os.environ["KGN_BENCH_SCENE_CACHE"] = str(root)
+    yield root
+    if old is None:
+        os.environ.pop("KGN_BENCH_SCENE_CACHE", None)
+    else:
+        os.environ["KGN_BENCH_SCENE_CACHE"] = old
+
+
 @pytest.fixture(scope="session")
 def tiny_dataset(tmp_path_factory):
     """A 3-scene multi-object dataset with 2 views per scene, generated once per test session."""

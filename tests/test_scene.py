@@ -19,6 +19,24 @@ def test_object_pose_is_the_body_pose():
     np.testing.assert_allclose(scene.object_pose(0), T, atol=1e-12)
     np.testing.assert_allclose(scene.data.xpos[b], T[:3, 3], atol=1e-12)
     np.testing.assert_allclose(scene.data.xmat[b].reshape(3, 3), T[:3, :3], atol=1e-12)
+    assert np.array_equal(scene.object_position(0), scene.object_pose(0)[:3, 3])
+
+
+def test_a_snapshot_restores_a_fresh_scene_to_the_last_bit(rng):
+    """Retired objects included; a snapshot of another scene's size is refused."""
+    objects = _six_objects(rng)
+    scene = Scene(objects)
+    scene.step(50)
+    scene.retire_object(2)
+    snap = scene.snapshot()
+    scene.step(100)
+    fresh = Scene(objects)
+    fresh.restore(snap)
+    assert fresh.retired.keys() == {2} and fresh.data.time == snap.state[0]
+    fresh.step(100)
+    assert np.array_equal(fresh.data.qpos, scene.data.qpos) and np.array_equal(fresh.data.qvel, scene.data.qvel)
+    with pytest.raises(ValueError, match="does not fit"):
+        Scene(objects[:2]).restore(snap)
 
 
 def test_mass_and_physics_options():

@@ -160,11 +160,11 @@ def execute_grasp(scene: Scene, executor: Executor, sel: Selection, cfg: Executi
         carried = held_object(scene, executor) == held
         executor.set_gripper(GRIPPER.max_width, 0.3)
         executor.wait(0.6)
-        in_bin = BIN.contains(scene.object_pose(held)[:3, 3])
+        in_bin = BIN.contains(scene.object_position(held))
         if park:
             executor.move_joints(PARK_Q)
         if not in_bin:
-            where = np.round(scene.object_pose(held)[:3, 3], 3).tolist()
+            where = np.round(scene.object_position(held), 3).tolist()
             return AttemptResult("dropped_transport", held, f"object ended at {where}")
         return AttemptResult(None, held, "" if carried else "slipped from the jaws over the bin, fell in")
     except PhysicsError as e:

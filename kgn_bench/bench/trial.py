@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgn_bench.bench.scene_cache import CachedScene, load_scene, save_scene
 from kgn_bench.camera import clip_far, crop_depth, orbit_pose
 from kgn_bench.config import TaskConfig
 from kgn_bench.detectors.base import Candidates, Detector, DetectorError, Observation
@@ -203,19 +204,27 @@ def _ik(hand: Hand) -> IK | None:
 
 def _build_scene(task: TaskConfig, index: int, ik: IK) -> tuple[Scene, Hand, list[int]]:
     """The trial's work cell with its objects placed and settled, the hand parked (retried on a blow-up), and
-    the indices of the round's objects (``ARRANGEMENTS``)."""
+    the indices of the round's objects (``ARRANGEMENTS``); a first try's settled scene is kept and restored by
+    later runs of the trial (``bench.scene_cache``)."""
     rng = np.random.default_rng([task.seed, index])
     arrange = ARRANGEMENTS[task.spec.arrangement]
+    cached = load_scene(task, index)
     for attempt in range(SCENE_TRIES):
         scene = Scene(trial_objects(task, index, rng), task.camera.pinhole, extend=_workcell(task))
         executor = _hand(task, scene, ik)
+        if cached is not None:  # this trial's set-up as an earlier run simulated it (bench.scene_cache)
+            scene.restore(cached.state)
+            return scene, executor, list(cached.members)
         try:
             members = arrange(scene, rng)
         except PhysicsError:
             if attempt == SCENE_TRIES - 1:
                 raise
             continue
-        return scene, executor, list(range(len(scene.objects))) if members is None else members
+        members = list(range(len(scene.objects))) if members is None else list(members)
+        if attempt == 0:  # a retried scene draws its objects after another's: only the first is kept
+            save_scene(task, index, CachedScene(scene.snapshot(), tuple(members)))
+        return scene, executor, members
     raise PhysicsError(f"trial {index}: no stable scene")
 
 

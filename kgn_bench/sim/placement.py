@@ -137,7 +137,7 @@ def off_table(scene: Scene) -> list[int]:
     """Objects whose origin is below the table top or outside its extent."""
     out = []
     for i in range(len(scene.objects)):
-        t = scene.object_pose(i)[:3, 3]
+        t = scene.object_position(i)
         if t[2] < -0.01 or np.any(np.abs(t[:2]) > TABLE_HALF_SIZE):
             out.append(i)
     return out
@@ -366,7 +366,7 @@ def settle(scene: Scene, config: PlacementConfig = PlacementConfig(), strict: bo
     finally:
         scene.model.dof_damping[dofs] = saved
     for i in off_table(scene) if strict else ():
-        t = scene.object_pose(i)[:3, 3]
+        t = scene.object_position(i)
         raise PhysicsError(f"object {i} ({scene.objects[i].shape.name}) left the table at {np.round(t, 3)}")
     for i in range(len(scene.objects)):
         scene.data.qvel[scene.qvel_adr[i] : scene.qvel_adr[i] + 6] = 0.0
@@ -386,10 +386,10 @@ def settle_to_rest(scene: Scene, config: PlacementConfig = PlacementConfig()) ->
     hold_steps = max(1, int(config.hold_time / TIMESTEP))
     for _ in range(config.hold_rounds):
         steps += settle(scene, config, strict=False).steps
-        before = np.array([scene.object_pose(i)[:3, 3] for i in range(len(scene.objects))])
+        before = np.array([scene.object_position(i) for i in range(len(scene.objects))])
         scene.step(hold_steps)
         steps += hold_steps
-        moved = np.linalg.norm([scene.object_pose(i)[:3, 3] for i in range(len(scene.objects))] - before, axis=1)
+        moved = np.linalg.norm([scene.object_position(i) for i in range(len(scene.objects))] - before, axis=1)
         gone = off_table(scene)
         moved[gone] = 0.0
         if np.all(moved <= config.hold_tol):
@@ -428,7 +428,7 @@ def retire_outside_workspace(scene: Scene, objects: list[int] | None = None) -> 
     workspace cube (``giga.in_workspace``) out of the scene (``Scene.retire_object``), as GIGA deletes them;
     returns their indices."""
     candidates = range(len(scene.objects)) if objects is None else objects
-    out = [i for i in candidates if i not in scene.retired and not giga.in_workspace(scene.object_pose(i)[:3, 3])]
+    out = [i for i in candidates if i not in scene.retired and not giga.in_workspace(scene.object_position(i))]
     for i in out:
         scene.retire_object(i)
     return out

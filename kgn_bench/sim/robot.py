@@ -212,5 +212,5 @@ def on_table(scene: Scene, i: int) -> bool:
     """Whether object ``i`` of a work-cell scene rests on the table top (not in the bin, not fallen off).
     The bin's inner side reaches 3 cm under the table's footprint, so an object in the bin is never on the
     table."""
-    t = scene.object_pose(i)[:3, 3]
+    t = scene.object_position(i)
     return bool(-0.01 < t[2] < 0.5 and np.all(np.abs(t[:2]) < TABLE_HALF_SIZE) and not BIN.contains(t))

@@ -25,7 +25,8 @@ from kgn_bench.errors import KGNBenchError
 from kgn_bench.geometry import make_pose, matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from kgn_bench.shapes.base import GeomSpec, Shape
 
-__all__ = ["GROUP_ROBOT", "GROUP_VISUAL", "TABLE_HALF_SIZE", "TABLE_THICKNESS", "PhysicsError", "Scene", "SceneObject"]
+__all__ = ["GROUP_ROBOT", "GROUP_VISUAL", "TABLE_HALF_SIZE", "TABLE_THICKNESS", "PhysicsError", "Scene", "SceneObject",
+           "SceneState"]
 
 TABLE_HALF_SIZE = 0.5
 TABLE_THICKNESS = 0.04
@@ -185,6 +186,15 @@ def _add_object(world, i: int, obj: SceneObject, assets) -> None:
                       rgba=rgba, assets=assets)
 
 
+@dataclass(frozen=True)
+class SceneState:
+    """What ``Scene.restore`` needs to put a scene back where ``Scene.snapshot`` found it: MuJoCo's integration
+    state (``mjSTATE_INTEGRATION``, a flat float64 array) and the objects retired from the scene."""
+
+    state: np.ndarray
+    retired: tuple[int, ...]
+
+
 class Scene:
     """A compiled scene: the MuJoCo model and data plus the maps from objects to bodies and geoms."""
 
@@ -251,6 +261,31 @@ class Scene:
         a = self.qpos_adr[i]
         q = self.data.qpos[a : a + 7]
         return make_pose(matrix_from_quat_wxyz(q[3:]), q[:3])
+
+    def object_position(self, i: int) -> np.ndarray:
+        """Current world position (m) of object ``i``'s origin: ``object_pose(i)[:3, 3]`` without the rotation."""
+        a = self.qpos_adr[i]
+        return self.data.qpos[a : a + 3].copy()
+
+    def snapshot(self) -> SceneState:
+        """The scene's whole state, for ``restore`` into a scene built from the same objects and work cell."""
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.zeros(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self.data, state, spec)
+        return SceneState(state, tuple(sorted(self.retired)))
+
+    def restore(self, snap: SceneState) -> None:
+        """Put the scene in the state ``snap`` (``snapshot`` of a scene compiled from the same objects and work
+        cell): its objects retired, then MuJoCo's integration state (time, positions, velocities, controls,
+        mocap targets, warm start) bit for bit, and the derived quantities recomputed."""
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        if len(snap.state) != mujoco.mj_stateSize(self.model, spec):
+            raise ValueError(f"a snapshot of {len(snap.state)} numbers does not fit this scene's state of "
+                             f"{mujoco.mj_stateSize(self.model, spec)}")
+        for i in snap.retired:
+            self.retire_object(i)
+        mujoco.mj_setState(self.model, self.data, np.asarray(snap.state, dtype=float), spec)
+        self.forward()
 
     def object_poses(self) -> np.ndarray:
         if not self.objects:
