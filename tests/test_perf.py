@@ -48,7 +48,7 @@ def test_perf_train_splits_a_step_into_batch_preparation_and_the_step(tiny_datas
     root, _ = tiny_dataset
     text = perf_train(root, strides=(4, 2), precisions=("float32",), batches=2, batch_size=2)
     rows = [line for line in text.splitlines() if line.startswith("| 4 |") or line.startswith("| 2 |")]
-    assert len(rows) == 2 and "kernels:" in text
-    for row in rows:
+    assert len(rows) == 4 and "kernels:" in text
+    for row, layout in zip(rows, ["contiguous", "channels-last"] * 2):
         cells = [c.strip() for c in row.strip("|").split("|")]
-        assert cells[1] == "float32" and all(float(c) > 0 for c in cells[2:])
+        assert cells[1:3] == ["float32", layout] and all(float(c) > 0 for c in cells[3:])

@@ -149,13 +149,15 @@ def test_stride_two_bfloat16_run_trains_and_loads_as_a_stride_two_detector(tmp_p
 
 
 def test_a_run_from_before_a_new_setting_resumes(tmp_path, tiny_dataset):
-    """A checkpoint written before ``precision`` and ``output_stride`` existed resumes at their defaults."""
+    """A checkpoint written before ``precision``, ``channels_last`` and ``output_stride`` existed resumes at their
+    defaults."""
     root, _ = tiny_dataset
     cfg = load_train_config(_config(tmp_path, root, epochs=1))
     train(cfg, progress=False)
     last = tmp_path / "run" / "last.pt"
     ckpt = load_checkpoint(last)
     del ckpt["train"]["train"]["precision"], ckpt["train"]["network"]["output_stride"]
+    del ckpt["train"]["train"]["channels_last"]
     torch.save(ckpt, last)
     train(cfg, progress=False)  # accepted: nothing left to train
     assert load_checkpoint(tmp_path / "run" / "final.pt")["epoch"] == 1
@@ -163,6 +165,23 @@ def test_a_run_from_before_a_new_setting_resumes(tmp_path, tiny_dataset):
     torch.save(ckpt, last)
     with pytest.raises(CheckpointError, match="different config"):
         train(cfg, progress=False)
+
+
+def test_a_channels_last_run_trains_the_same_network(tmp_path, tiny_dataset):
+    """The layout changes the kernels, not the network: the first epoch's losses agree with the contiguous
+    run's to float32 rounding, and the weights load into a network in the default layout."""
+    root, _ = tiny_dataset
+    finals = {}
+    for channels_last in (False, True):
+        folder = tmp_path / str(channels_last)
+        folder.mkdir()
+        cfg = load_train_config(_config(folder, root), [("train.channels_last", str(channels_last).lower())])
+        assert cfg.train.channels_last is channels_last
+        finals[channels_last] = train(cfg, progress=False)
+    plain, last = (load_checkpoint(finals[k])["history"][0] for k in (False, True))
+    assert plain["total"] == pytest.approx(last["total"], rel=1e-4)
+    model = load_model(finals[True])
+    assert not model.net.channels_last and model.net.heads["hm"][0].weight.is_contiguous()
 
 
 def test_shipped_configs_load():

@@ -241,10 +241,11 @@ def perf_detector(variant: str = "kgnv2", weights: str | Path | None = None, fra
 
 def perf_train(data: Path, variant: str = "kgnv2", strides: tuple[int, ...] = (4, 2),
                precisions: tuple[str, ...] = ("float32", "bfloat16"), batches: int = 6, batch_size: int = 8,
-               threads: int = 1) -> str:
+               threads: int = 1, layouts: tuple[bool, ...] = (False, True)) -> str:
     """One KGN training step, split: preparing a batch (reading the views, augmentation, targets: what the
     data-loading process does) and the step (forward, loss, backward, Adam), for each output stride and
-    forward precision, on ``threads`` torch threads; medians over ``batches`` after one warm-up. Samples/s is
+    forward precision and memory layout (``layouts``: channels-last off, on; ``[train] channels_last``), on
+    ``threads`` torch threads; medians over ``batches`` after one warm-up. Samples/s is
     ``batch_size`` over the longer of the two (a loading process overlaps them) and over their sum (loading
     in the training process, ``workers = 0``). The CPU kernels are the process's (``KGN_BENCH_KERNELS``):
     bfloat16 is only fast with native ones on a CPU that has it (``training.train.autocast_dtype``)."""
@@ -272,23 +273,26 @@ def perf_train(data: Path, variant: str = "kgnv2", strides: tuple[int, ...] = (4
             load_ms.append(1e3 * (time.perf_counter() - t))
             batch_list.append((x, targets))
         for precision in precisions:
-            torch.manual_seed(0)
-            net = build_network(v, NetworkConfig(output_stride=stride)).train()
-            optim = torch.optim.Adam(net.parameters(), lr=1e-3)
-            step_ms, dtype = [], torch.bfloat16 if precision == "bfloat16" else None
-            for x, targets in batch_list:
-                t = time.perf_counter()
-                train_step(net, optim, x, targets, v, LossWeights(), dtype)
-                step_ms.append(1e3 * (time.perf_counter() - t))
-            load, step = float(np.median(load_ms[1:])), float(np.median(step_ms[1:]))
-            rows.append(f"| {stride} | {precision} | {load:.0f} | {step:.0f} "
-                        f"| {1e3 * batch_size / max(load, step):.1f} | {1e3 * batch_size / (load + step):.1f} |")
+            for channels_last in layouts:
+                torch.manual_seed(0)
+                net = build_network(v, NetworkConfig(output_stride=stride)).use_channels_last(channels_last).train()
+                optim = torch.optim.Adam(net.parameters(), lr=1e-3)
+                step_ms, dtype = [], torch.bfloat16 if precision == "bfloat16" else None
+                for x, targets in batch_list:
+                    t = time.perf_counter()
+                    train_step(net, optim, x, targets, v, LossWeights(), dtype)
+                    step_ms.append(1e3 * (time.perf_counter() - t))
+                load, step = float(np.median(load_ms[1:])), float(np.median(step_ms[1:]))
+                rows.append(f"| {stride} | {precision} | {'channels-last' if channels_last else 'contiguous'} "
+                            f"| {load:.0f} | {step:.0f} | {1e3 * batch_size / max(load, step):.1f} "
+                            f"| {1e3 * batch_size / (load + step):.1f} |")
     kernels = describe()
     return "\n".join([
         f"{variant} training step, batch {batch_size} of 256×256 crops from {data}, {threads} torch thread(s); "
         f"kernels: {kernels['set']}" + (f" ({kernels['reason']})" if kernels["reason"] else ""),
         "",
-        "| output stride | forward | batch prep (ms) | step (ms) | samples/s, loader process | samples/s, in-process |",
-        "| --- | --- | --- | --- | --- | --- |",
+        "| output stride | forward | layout | batch prep (ms) | step (ms) | samples/s, loader process "
+        "| samples/s, in-process |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
         *rows,
     ])

@@ -77,6 +77,8 @@ def _add_train(psub) -> None:
     ptrain.add_argument("--precisions", nargs="+", default=["float32", "bfloat16"], choices=("float32", "bfloat16"))
     ptrain.add_argument("--batches", type=int_at_least(2), default=6)
     ptrain.add_argument("--threads", type=int_at_least(1), default=1, help="torch threads (default 1)")
+    ptrain.add_argument("--layouts", nargs="+", default=["contiguous", "channels-last"],
+                        choices=("contiguous", "channels-last"), help="memory layouts to time (default both)")
     ptrain.set_defaults(func=_cmd_perf_train)
 
 
@@ -84,7 +86,7 @@ def _cmd_perf_train(args) -> int:
     from kgn_bench.bench.perf import perf_train
 
     print(perf_train(args.data, args.variant, tuple(args.strides), tuple(args.precisions), batches=args.batches,
-                     threads=args.threads))
+                     threads=args.threads, layouts=tuple(layout == "channels-last" for layout in args.layouts)))
     return 0
 
 

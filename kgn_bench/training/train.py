@@ -97,6 +97,9 @@ class TrainSettings:
     """Which grasp a (cell, bin) target takes: ``first`` (the reference) or ``frontal`` (``model.targets``)."""
     precision: str = "auto"
     """The forward pass's arithmetic (``autocast_dtype``): ``auto``, ``float32`` or ``bfloat16``."""
+    channels_last: bool = False
+    """Weights and inputs in the channels-last memory format (``KGNNet.use_channels_last``): the same network
+    and loss, other kernels; with bfloat16 on the CPU about 1.2× the samples/s (``results/perf.md``)."""
 
 
 @dataclass(frozen=True)
@@ -270,7 +273,7 @@ def _start_run(cfg: TrainConfig, device: str | None, threads: int | None) -> _Ru
     leaks = test_set_leaks(identity["manifest"].get("object_types", []))
     if leaks:
         raise DatasetError(f"{data}: its scenes hold real test objects ({', '.join(leaks[:5])}); never train on them")
-    net = build_network(variant, cfg.network).to(dev)
+    net = build_network(variant, cfg.network).to(dev).use_channels_last(t_cfg.channels_last)
     optim = torch.optim.Adam(net.parameters(), lr=t_cfg.lr)
     commit = git_commit()  # the code that starts the run (kept across resumes)
     return _Run(cfg, out, data, variant, dev, loader_workers, dataset, identity, net, optim, commit)
