@@ -108,7 +108,8 @@ def import_set(split: str = "test", workers: int = 1, progress: bool = True,
         items = [every[n] for n in names]
     todo = [it for it in items if not (user_root() / it.name / MANIFEST).is_file()]
     failed: dict[str, str] = {}
-    bar = Progress(len(todo), f"import pybullet {split}", unit="objects", enabled=progress)
+    what = f"import pybullet {split}" if names is None else "import pybullet objects"
+    bar = Progress(len(todo), what, unit="objects", enabled=progress)
 
     def done(result: tuple[str, str]) -> None:
         name, error = result
