@@ -4,6 +4,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
 from kgn_bench.model.preprocess import prepare
 from kgn_bench.model.targets import apply_affine, project_keypoints
@@ -47,6 +48,10 @@ def test_stride_two_targets_are_the_finer_maps(tiny_dataset):
     assert 1.8 * k4 < k2 < 2.2 * k4
     with pytest.raises(ValueError, match="output stride"):
         GraspViewDataset(root, "test", V2, stride=8)
+    wide = GraspViewDataset(root, "test", V2, stride=2, heatmap_radius=2)[0][1]
+    peaks = t2["hm"] == 1.0
+    assert torch.equal(wide["hm"] == 1.0, peaks) and torch.equal(wide["mask"], t2["mask"])
+    assert int((wide["hm"] > 0).sum()) > 2 * int((t2["hm"] > 0).sum())
 
 
 @pytest.mark.parametrize("flip", [0.0, 1.0])

@@ -74,6 +74,19 @@ def test_heatmap_is_a_clipped_3x3_gaussian_combined_by_max():
     assert np.count_nonzero(hm[7]) == 4 and np.count_nonzero(hm) == 16
 
 
+def test_a_wider_heatmap_gaussian_keeps_its_peak_and_follows_centernets_sigma():
+    """Radius 2: 5×5 cells, σ = 5/6; its half-maximum contour spans about the image pixels of radius 1 at
+    twice the stride."""
+    hm = render_heatmap(np.array([[5, 5]]), np.array([0]), (11, 11), radius=2)
+    sigma = 5.0 / 6.0
+    assert np.count_nonzero(hm) == 25 and hm[0, 5, 5] == 1.0
+    assert hm[0, 5, 7] == np.float32(np.exp(-4.0 / (2.0 * sigma**2))) and hm[0, 5, 8] == 0.0
+    assert np.array_equal(render_heatmap(np.array([[5, 5]]), np.array([0]), (11, 11), radius=1),
+                          render_heatmap(np.array([[5, 5]]), np.array([0]), (11, 11)))
+    with pytest.raises(ValueError, match="at least 1"):
+        render_heatmap(np.array([[5, 5]]), np.array([0]), (11, 11), radius=0)
+
+
 def test_targets_of_one_grasp():
     T = make_pose(rot_x(0.3) @ rot_y(-np.pi / 2), [0.02, -0.01, 0.8])
     t = encode_targets(T[None], np.array([0.05]), K, M_HALF, OUT_HALF, FIXED)

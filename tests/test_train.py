@@ -101,6 +101,7 @@ def test_evaluator_runs_on_schedule_and_leaves_the_weights_alone(tmp_path, tiny_
     ("[train]\nassignment = 'random'\n", "unknown \\[train\\] assignment 'random'"),
     ("[train]\nprecision = 'fp8'\n", "unknown \\[train\\] precision 'fp8'"),
     ("[network]\noutput_stride = 8\n", "output_stride must be one of"),
+    ("[train]\nheatmap_radius = 0\n", "heatmap_radius must be 1 to 4"),
 ])
 def test_bad_configs_give_one_line(tmp_path, text, message):
     p = tmp_path / "bad.toml"
@@ -157,7 +158,7 @@ def test_a_run_from_before_a_new_setting_resumes(tmp_path, tiny_dataset):
     last = tmp_path / "run" / "last.pt"
     ckpt = load_checkpoint(last)
     del ckpt["train"]["train"]["precision"], ckpt["train"]["network"]["output_stride"]
-    del ckpt["train"]["train"]["channels_last"]
+    del ckpt["train"]["train"]["channels_last"], ckpt["train"]["train"]["heatmap_radius"]
     torch.save(ckpt, last)
     train(cfg, progress=False)  # accepted: nothing left to train
     assert load_checkpoint(tmp_path / "run" / "final.pt")["epoch"] == 1

@@ -24,7 +24,9 @@ Per grasp, in order:
    choice a function of what the image shows, where "first" depends on the order in which a shape lists
    its grasp family, which the image does not show (a cylinder's family starts at an invisible angle);
 5. heatmap: a 3×3 Gaussian (σ = 0.5: 1 at the integer cell, e^−2 at edges, e^−4 at corners, clipped at
-   the map border) in channel ``c``, combined by element-wise maximum.
+   the map border) in channel ``c``, combined by element-wise maximum; ``heatmap_radius`` r > 1 widens it
+   to (2r+1)×(2r+1) cells with σ = (2r+1)/6 (r = 2 at stride 2 covers about the image area of r = 1 at
+   stride 4).
 
 Target dict (the input of ``kgn_bench.model.losses``), ``S = MAX_GRASPS`` slots: ``hm`` (9, Ho, Wo)
 float32; ``ind`` (S,) int64 ``= y_int·Wo + x_int``; ``mask`` (S,) float32; ``bin`` (S,) int64; ``reg``
@@ -255,18 +257,22 @@ def _one_per_cell(candidates: np.ndarray, poses_cam: np.ndarray, bins: np.ndarra
     return candidates[np.sort(first)][:MAX_GRASPS]
 
 
-def render_heatmap(cells: np.ndarray, bins: np.ndarray, out_shape: tuple[int, int]) -> np.ndarray:
-    """(9, Ho, Wo) float32 heatmap: a 3×3 Gaussian with σ = 0.5 (1, e^−2, e^−4) at each integer cell (x, y)
-    (K, 2) in channel ``bins`` (K,), clipped at the map border, combined by element-wise maximum."""
+def render_heatmap(cells: np.ndarray, bins: np.ndarray, out_shape: tuple[int, int], radius: int = 1) -> np.ndarray:
+    """(9, Ho, Wo) float32 heatmap: a (2r+1)×(2r+1) Gaussian of σ = (2r+1)/6 (CenterNet's rule; ``radius``
+    r = 1, the reference: σ = 0.5, values 1, e^−2, e^−4) at each integer cell (x, y) (K, 2) in channel ``bins``
+    (K,), clipped at the map border, combined by element-wise maximum."""
     ho, wo = _check_out_shape(out_shape)
+    if radius < 1:
+        raise ValueError(f"radius must be at least 1, got {radius}")
+    sigma = (2 * radius + 1) / 6.0
     hm = np.zeros(NUM_BINS * ho * wo, dtype=np.float32)
     cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
     bins = np.asarray(bins, dtype=np.int64).reshape(-1)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
             x, y = cells[:, 0] + dx, cells[:, 1] + dy
             ok = (x >= 0) & (x < wo) & (y >= 0) & (y < ho)
-            value = np.float32(np.exp(-(dx * dx + dy * dy) / (2.0 * 0.5**2)))
+            value = np.float32(np.exp(-(dx * dx + dy * dy) / (2.0 * sigma**2)))
             np.maximum.at(hm, (bins[ok] * ho + y[ok]) * wo + x[ok], value)
     return hm.reshape(NUM_BINS, ho, wo)
 
@@ -280,11 +286,13 @@ def encode_targets(
     variant: Variant,
     depth: np.ndarray | None = None,
     assignment: str = "first",
+    heatmap_radius: int = 1,
 ) -> dict[str, np.ndarray]:
     """Training targets of one image (format in the module docstring) from its ground-truth grasps.
 
-    Arguments as in ``assign_grasps``, and ``depth`` (H, W) planar metres of the image (needed, and only
-    read, when ``variant.scale_anchor == "depth"``); use ``assign_grasps`` to learn which grasps were kept.
+    Arguments as in ``assign_grasps``, ``depth`` (H, W) planar metres of the image (needed, and only read,
+    when ``variant.scale_anchor == "depth"``) and ``heatmap_radius`` (``render_heatmap``); use
+    ``assign_grasps`` to learn which grasps were kept.
     """
     ho, wo = _check_out_shape(out_shape)
     a = assign_grasps(poses_cam, widths, K, M, out_shape, variant, assignment)
@@ -297,7 +305,7 @@ def encode_targets(
         scales = np.where(np.isfinite(residual), residual, 0.0)
     k = len(a)
     targets = {
-        "hm": render_heatmap(a.cells, a.bins, (ho, wo)),
+        "hm": render_heatmap(a.cells, a.bins, (ho, wo), heatmap_radius),
         "ind": np.zeros(MAX_GRASPS, dtype=np.int64),
         "mask": np.zeros(MAX_GRASPS, dtype=np.float32),
         "bin": np.zeros(MAX_GRASPS, dtype=np.int64),

@@ -94,12 +94,15 @@ class GraspViewDataset(Dataset):
 
     def __init__(self, root: Path, split: str, variant: Variant, input_config: InputConfig | None = None,
                  augment: AugmentConfig | None = None, seed: int = 0, limit: int | None = None,
-                 cache_scenes: int = 64, assignment: str = "first", stride: int = OUTPUT_STRIDE) -> None:
+                 cache_scenes: int = 64, assignment: str = "first", stride: int = OUTPUT_STRIDE,
+                 heatmap_radius: int = 1) -> None:
         if assignment not in ASSIGNMENTS:
             raise ValueError(f"unknown assignment {assignment!r} (known: {', '.join(ASSIGNMENTS)})")
         if stride not in OUTPUT_STRIDES:
             raise ValueError(f"output stride must be one of {OUTPUT_STRIDES}, got {stride}")
-        self.assignment, self.stride = assignment, stride
+        if heatmap_radius < 1:
+            raise ValueError(f"heatmap radius must be at least 1, got {heatmap_radius}")
+        self.assignment, self.stride, self.heatmap_radius = assignment, stride, heatmap_radius
         self.root = Path(root)
         self.variant, self.augment, self.seed = variant, augment, seed
         self.input_config = input_config or InputConfig()
@@ -164,6 +167,6 @@ class GraspViewDataset(Dataset):
         x, M, out_shape, ann, view, depth = self._sample(index)
         grasps = camera_frame_grasps(ann, view)
         targets = encode_targets(grasps.poses, grasps.widths, ann.intrinsics.K, M, out_shape, self.variant, depth,
-                                 self.assignment)
+                                 self.assignment, self.heatmap_radius)
         return torch.from_numpy(np.ascontiguousarray(x)), {k: torch.from_numpy(v) for k, v in targets.items()}
 

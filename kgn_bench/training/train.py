@@ -97,6 +97,9 @@ class TrainSettings:
     """Which grasp a (cell, bin) target takes: ``first`` (the reference) or ``frontal`` (``model.targets``)."""
     precision: str = "auto"
     """The forward pass's arithmetic (``autocast_dtype``): ``auto``, ``float32`` or ``bfloat16``."""
+    heatmap_radius: int = 1
+    """The heatmap target's Gaussian, (2r+1)² output cells (``model.targets.render_heatmap``): 1 is the
+    reference's 3×3; 2 at output stride 2 covers about the image area of 1 at stride 4."""
     channels_last: bool = False
     """Weights and inputs in the channels-last memory format (``KGNNet.use_channels_last``): the same network
     and loss, other kernels; with bfloat16 on the CPU about 1.2× the samples/s (``results/perf.md``)."""
@@ -143,6 +146,8 @@ def load_train_config(path: Path, settings: list[tuple[str, str]] = ()) -> Train
     if get_variant(t.variant).weights_variant != t.variant:
         source = get_variant(t.variant).weights_variant
         raise TrainConfigError(f"{path}: variant {t.variant!r} is decoded from {source!r} weights; train that one")
+    if not 1 <= t.heatmap_radius <= 4:
+        raise TrainConfigError(f"{path}: [train] heatmap_radius must be 1 to 4, got {t.heatmap_radius}")
     if t.precision not in PRECISIONS:
         raise TrainConfigError(f"{path}: unknown [train] precision {t.precision!r} (known: {', '.join(PRECISIONS)})")
     if t.epochs < 1 or t.batch_size < 1 or not t.lr > 0 or t.workers < 0 or t.limit < 0 or t.eval_every < 0:
@@ -266,7 +271,7 @@ def _start_run(cfg: TrainConfig, device: str | None, threads: int | None) -> _Ru
 
     dataset = GraspViewDataset(data, "train", variant, cfg.input, cfg.augment, seed=t_cfg.seed,
                                limit=t_cfg.limit or None, assignment=t_cfg.assignment,
-                               stride=cfg.network.output_stride)
+                               stride=cfg.network.output_stride, heatmap_radius=t_cfg.heatmap_radius)
     if len(dataset) < t_cfg.batch_size:
         raise DatasetError(f"{data}: {len(dataset)} training views, fewer than one batch of {t_cfg.batch_size}")
     identity = dataset_identity(data)
