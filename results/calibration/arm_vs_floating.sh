@@ -4,7 +4,7 @@
 # (the arm cannot carry the Panda hand) and the detector's best candidate as predicted (selector "top").
 # The arm adds IK, the arm's own collisions, reach, and the carry to the bin.
 #   RUNS=runs/arm_vs_floating bash results/calibration/arm_vs_floating.sh [task ...]
-# Each run resumes; `kgn-bench report` of a run folder gives its summary with the failure reasons.
+# Each run resumes; the table: .venv/bin/python results/calibration/arm_vs_floating_table.py "$RUNS".
 set -euo pipefail
 RUNS=${RUNS:-runs/arm_vs_floating}
 TASKS=${*:-giga_pile giga_packed}
