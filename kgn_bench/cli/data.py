@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import fail, make_backend, writable, writable_file
+from .common import fail, make_backend, warn, writable, writable_file
 from .options import Parser, cluster_options, int_at_least, parent, quiet_option, workers_option
 
 __all__ = ["add"]
@@ -21,7 +21,8 @@ def add(sub) -> None:
 def _object_names(items: list[str]) -> list[str]:
     """Object names from the command line: ``primitives`` and ``household`` expand to the built-in groups, a
     packaged set's name (``pybullet_test``, ``pybullet_train:300``) to its objects; the packaged ones the
-    library lacks are imported first."""
+    library lacks are imported first. An object of a set that the importer refuses (a broken mesh) is left out
+    with a warning naming it and why; one named on its own is an error."""
     from kgn_bench.objects.pybullet_set import ensure_objects
     from kgn_bench.shapes import OBJECTS, PRIMITIVES, is_known
     from kgn_bench.shapes.library import is_set_name, packaged, set_names
@@ -29,14 +30,26 @@ def _object_names(items: list[str]) -> list[str]:
 
     groups = {"primitives": list(PRIMITIVES), "household": [n for n in OBJECTS if n not in PRIMITIVES]}
     names: list[str] = []
+    from_sets: set[str] = set()
     for item in items:
-        names += groups.get(item) or (set_names(item) if is_set_name(item) else [item])
+        if item in groups:
+            names += groups[item]
+        elif is_set_name(item):
+            members = set_names(item)
+            names += members
+            from_sets.update(members)
+        else:
+            names.append(item)
     for n in names:
         if not (is_known(n) or packaged(n)):
             raise ObjectError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
                               "(kgn-bench objects list)")
-    ensure_objects(names)
-    return list(dict.fromkeys(names))
+    ensure_objects([n for n in names if n not in from_sets])
+    refused = ensure_objects([n for n in names if n in from_sets], refusals=True)
+    if refused:
+        warn(f"{len(refused)} object(s) of the set(s) could not be imported and are left out: "
+             + "; ".join(f"{name} ({reason})" for name, reason in sorted(refused.items())))
+    return [n for n in dict.fromkeys(names) if n not in refused]
 
 
 def _add_generate(dsub) -> None:

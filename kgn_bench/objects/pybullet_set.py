@@ -124,17 +124,22 @@ def import_set(split: str = "test", workers: int = 1, progress: bool = True,
     return failed
 
 
-def ensure_objects(names: list[str] | tuple[str, ...], workers: int = 1, progress: bool = True) -> None:
+def ensure_objects(names: list[str] | tuple[str, ...], workers: int = 1, progress: bool = True,
+                   refusals: bool = False) -> dict[str, str]:
     """Import the packaged objects among ``names`` that the library lacks (the main job calls this, so a
-    fresh clone needs no separate import step); ``ObjectError`` names the first that cannot be imported."""
+    fresh clone needs no separate import step). ``ObjectError`` names the first that cannot be imported, unless
+    ``refusals``: then the ones the importer refuses (a broken mesh: ``pb_168``'s vertices are all NaN) are
+    returned as ``{name: reason}`` and the others imported (a set drawn by name, ``pybullet_train:300``, goes
+    on without them). An unknown name is an error either way."""
     missing = [n for n in dict.fromkeys(names) if packaged(n) and find_object(n) is None]
     if not missing:
-        return
+        return {}
     every = _all_items()
     unknown = [n for n in missing if n not in every and n not in PYBULLET_EXTRAS]
     if unknown:
         raise ObjectError(f"unknown object {unknown[0]!r}: not in the pybullet set")
     failed = import_set(workers=workers, progress=progress, names=missing)
-    if failed:
+    if failed and not refusals:
         name, error = next(iter(failed.items()))
         raise ObjectError(f"object {name!r} of the pybullet set could not be imported: {error}")
+    return failed
