@@ -50,3 +50,24 @@ def test_a_broken_mesh_of_a_set_is_left_out_with_a_warning_and_refused_when_name
     code = main(["data", "generate", "--mode", "single", "--scenes", "1", "--objects", "pb_168",
                  "--out", str(tmp_path / "d")])
     assert code == 2 and "pb_168" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("objects", "groups"), [(["primitives", "household"], (6, 8)),
+                                                  (["cuboid", "sphere", "mug"], ()), (["primitives"], ())])
+def test_each_argument_is_drawn_equally_often_when_one_is_a_group(objects, groups, tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from kgn_bench.data import generate
+
+    seen = []
+
+    def record(config, *args, **kwargs):
+        seen.append(config)
+        return SimpleNamespace(scenes=0, wall=0.0, views_per_second=0.0)
+
+    monkeypatch.setattr(generate, "generate_dataset", record)
+    argv = ["data", "generate", "--mode", "multi", "--scenes", "1", "--out", str(tmp_path / "d"), "--objects"]
+    assert main([*argv, *objects]) == 0
+    assert seen[0].groups == groups
+    if groups:
+        assert len(seen[0].objects) == sum(groups)

@@ -174,3 +174,26 @@ def test_random_appearance_and_depth_noise_change_only_what_they_are_for(tmp_pat
     assert looks.manifest()["appearance"] == "random" and noisy.manifest()["depth_noise"] == 1.0
     with pytest.raises(ValueError, match="appearance must be one of"):
         GenerateConfig(appearance="marble")
+
+
+def test_groups_are_drawn_equally_often_and_enter_the_manifest_only_when_set():
+    """A group of one (the cuboid) and one of the other 13 built-in objects: a single-object scene holds the
+    cuboid half the time (not 1 in 14), a six-object scene almost always, never twice; without groups the
+    draws are those of before."""
+    from kgn_bench.data.generate import _draw_names
+    from kgn_bench.shapes import OBJECTS
+
+    objects = ("cuboid", *[n for n in OBJECTS if n != "cuboid"])
+    single = GenerateConfig(mode="single", objects=objects, groups=(1, len(objects) - 1))
+    rng = np.random.default_rng(0)
+    assert 0.43 < np.mean([_draw_names(single, rng) == ["cuboid"] for _ in range(600)]) < 0.57
+    multi = GenerateConfig(mode="multi", objects=objects, groups=(1, len(objects) - 1))
+    scenes = [_draw_names(multi, rng) for _ in range(200)]
+    assert all(len(set(names)) == len(names) == 6 for names in scenes)
+    assert np.mean(["cuboid" in names for names in scenes]) > 0.9
+    flat = GenerateConfig(mode="multi", objects=objects)
+    expected = [objects[k] for k in np.random.default_rng(0).choice(len(objects), 6, replace=False)]
+    assert _draw_names(flat, np.random.default_rng(0)) == expected
+    assert multi.manifest()["object_groups"] == [1, len(objects) - 1] and "object_groups" not in flat.manifest()
+    with pytest.raises(ValueError, match="add up to"):
+        GenerateConfig(objects=objects, groups=(6, 1))

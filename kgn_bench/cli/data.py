@@ -18,28 +18,29 @@ def add(sub) -> None:
         add_command(dsub)
 
 
-def _object_names(items: list[str]) -> list[str]:
-    """Object names from the command line: ``primitives`` and ``household`` expand to the built-in groups, a
-    packaged set's name (``pybullet_test``, ``pybullet_train:300``) to its objects; the packaged ones the
-    library lacks are imported first. An object of a set that the importer refuses (a broken mesh) is left out
-    with a warning naming it and why; one named on its own is an error."""
+def _object_groups(items: list[str]) -> list[list[str]]:
+    """Object names from the command line, one list per argument: ``primitives`` and ``household`` expand to the
+    built-in groups, a packaged set's name (``pybullet_test``, ``pybullet_train:300``) to its objects; the
+    packaged ones the library lacks are imported first. An object of a set that the importer refuses (a broken
+    mesh) is left out with a warning naming it and why; one named on its own is an error. A name already in an
+    earlier argument's list is dropped from later ones; empty lists are dropped."""
     from kgn_bench.objects.pybullet_set import ensure_objects
     from kgn_bench.shapes import OBJECTS, PRIMITIVES, is_known
     from kgn_bench.shapes.library import is_set_name, packaged, set_names
     from kgn_bench.shapes.mesh_object import ObjectError
 
-    groups = {"primitives": list(PRIMITIVES), "household": [n for n in OBJECTS if n not in PRIMITIVES]}
-    names: list[str] = []
+    builtin = {"primitives": list(PRIMITIVES), "household": [n for n in OBJECTS if n not in PRIMITIVES]}
+    groups: list[list[str]] = []
     from_sets: set[str] = set()
     for item in items:
-        if item in groups:
-            names += groups[item]
+        if item in builtin:
+            groups.append(builtin[item])
         elif is_set_name(item):
-            members = set_names(item)
-            names += members
-            from_sets.update(members)
+            groups.append(set_names(item))
+            from_sets.update(groups[-1])
         else:
-            names.append(item)
+            groups.append([item])
+    names = [n for g in groups for n in g]
     for n in names:
         if not (is_known(n) or packaged(n)):
             raise ObjectError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
@@ -49,7 +50,19 @@ def _object_names(items: list[str]) -> list[str]:
     if refused:
         warn(f"{len(refused)} object(s) of the set(s) could not be imported and are left out: "
              + "; ".join(f"{name} ({reason})" for name, reason in sorted(refused.items())))
-    return [n for n in dict.fromkeys(names) if n not in refused]
+    seen: set[str] = set()
+    kept = []
+    for g in groups:
+        g = [n for n in dict.fromkeys(g) if n not in refused and n not in seen]
+        seen.update(g)
+        if g:
+            kept.append(g)
+    return kept
+
+
+def _object_names(items: list[str]) -> list[str]:
+    """``_object_groups`` as one list of names, in order."""
+    return [n for g in _object_groups(items) for n in g]
 
 
 def _add_generate(dsub) -> None:
@@ -66,7 +79,8 @@ def _add_generate(dsub) -> None:
     gen.add_argument("--objects", nargs="+", metavar="NAME",
                      help="object types, groups (primitives, household) or a set (pybullet_test, "
                           "pybullet_train:300) to draw from instead of the six primitives; multi mode puts six of "
-                          "them in each scene")
+                          "them in each scene; with several arguments of which one is a group or set, each "
+                          "argument is drawn equally often")
     gen.add_argument("--appearance", choices=("plain", "random"), default="plain",
                      help="plain: a uniform colour per object (the paper's data); random: procedural textures and "
                           "colours per object and for the table")
@@ -81,9 +95,13 @@ def _cmd_data_generate(args) -> int:
 
     backend = make_backend(args)
     writable(args.out)
-    objects = _object_names(args.objects or [])
+    groups = _object_groups(args.objects or [])
+    objects = [n for g in groups for n in g]
+    # each argument drawn equally often when one of several is a group or a set (GenerateConfig.groups)
+    sizes = tuple(len(g) for g in groups) if len(groups) > 1 and max(map(len, groups)) > 1 else ()
     config = GenerateConfig(mode=args.mode, scenes=args.scenes, views=args.views, seed=args.seed,
-                            objects=tuple(objects), appearance=args.appearance, depth_noise=args.depth_noise)
+                            objects=tuple(objects), groups=sizes, appearance=args.appearance,
+                            depth_noise=args.depth_noise)
     try:
         stats = generate_dataset(config, args.out, workers=args.workers, overwrite=args.overwrite,
                                  progress=not args.quiet, backend=backend)

@@ -17,6 +17,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from functools import partial
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -81,6 +82,10 @@ class GenerateConfig:
     placement: PlacementConfig = field(default_factory=PlacementConfig)
     objects: tuple[str, ...] = ()
     """The object types scenes draw from; empty: the PS primitives (``PRIMITIVES``)."""
+    groups: tuple[int, ...] = ()
+    """Sizes of consecutive groups of ``objects`` that are drawn equally often (each object slot picks a group
+    uniformly, then one of its objects): ``(6, 299)`` for the primitives and 299 meshes makes half the objects
+    primitives. Empty: one group, every object equally often."""
     appearance: str = "plain"
     """``plain``: one uniform random colour per object and the grey table (the paper's data); ``random``:
     procedural textures and colours per object and for the table (``sim.appearance``)."""
@@ -100,6 +105,12 @@ class GenerateConfig:
         for name in self.objects:
             if not is_known(name):
                 raise ValueError(f"unknown object {name!r}: neither built in nor imported (kgn-bench objects list)")
+        if self.groups and (sum(self.groups) != len(self.objects) or min(self.groups) < 1):
+            raise ValueError(f"groups {self.groups} must be positive sizes that add up to the {len(self.objects)} "
+                             "objects")
+        if self.groups and self.mode == "multi" and len(self.objects) < MULTI_OBJECTS:
+            raise ValueError(f"multi mode draws {MULTI_OBJECTS} distinct objects from groups of "
+                             f"{len(self.objects)} in all")
 
     @property
     def object_types(self) -> list[str]:
@@ -128,6 +139,7 @@ class GenerateConfig:
             # at their defaults these stay out, so that datasets made before they existed keep their identity
             **({"appearance": self.appearance} if self.appearance != "plain" else {}),
             **({"depth_noise": self.depth_noise} if self.depth_noise else {}),
+            **({"object_groups": list(self.groups)} if len(self.groups) > 1 else {}),
         }
 
     def rng(self, index: int, stream: int | None = None) -> np.random.Generator:
@@ -150,17 +162,32 @@ class GeneratedScene:
     timings: dict[str, float]
 
 
-def _sample_objects(config: GenerateConfig, rng: np.random.Generator) -> list[SceneObject]:
-    """One object (single mode), or ``MULTI_OBJECTS`` distinct ones in random order (multi mode: all six
-    primitives, or six of the given objects)."""
+def _draw_names(config: GenerateConfig, rng: np.random.Generator) -> list[str]:
+    """The scene's object names: one (single mode) or ``MULTI_OBJECTS`` distinct ones in random order (multi
+    mode: all six primitives, or six of the given objects); with ``groups``, each slot picks a group that has
+    objects left uniformly, then one of them uniformly."""
     names = config.object_types
+    count = 1 if config.mode == "single" else MULTI_OBJECTS
+    if len(config.groups) > 1:
+        bounds = np.cumsum((0, *config.groups))
+        left = [list(names[a:b]) for a, b in pairwise(bounds)]
+        chosen = []
+        for _ in range(count):
+            open_groups = [g for g in left if g]
+            group = open_groups[rng.integers(len(open_groups))]
+            chosen.append(group.pop(int(rng.integers(len(group)))))
+        return chosen
     if config.mode == "single":
-        chosen = [names[rng.integers(len(names))]]
-    elif len(names) <= MULTI_OBJECTS:
-        chosen = [names[k] for k in rng.permutation(len(names))]
-    else:
-        chosen = [names[k] for k in rng.choice(len(names), MULTI_OBJECTS, replace=False)]
-    return [SceneObject(sample_shape(n, rng), tuple(float(c) for c in rng.uniform(0.0, 1.0, 3))) for n in chosen]
+        return [names[rng.integers(len(names))]]
+    if len(names) <= MULTI_OBJECTS:
+        return [names[k] for k in rng.permutation(len(names))]
+    return [names[k] for k in rng.choice(len(names), MULTI_OBJECTS, replace=False)]
+
+
+def _sample_objects(config: GenerateConfig, rng: np.random.Generator) -> list[SceneObject]:
+    """The scene's objects (``_draw_names``), each with its random dimensions and colour."""
+    return [SceneObject(sample_shape(n, rng), tuple(float(c) for c in rng.uniform(0.0, 1.0, 3)))
+            for n in _draw_names(config, rng)]
 
 
 def generate_scene(config: GenerateConfig, index: int) -> GeneratedScene:
