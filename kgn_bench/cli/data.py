@@ -18,12 +18,13 @@ def add(sub) -> None:
         add_command(dsub)
 
 
-def _object_groups(items: list[str]) -> list[list[str]]:
+def _object_groups(items: list[str], workers: int = 1) -> list[list[str]]:
     """Object names from the command line, one list per argument: ``primitives`` and ``household`` expand to the
     built-in groups, a packaged set's name (``pybullet_test``, ``pybullet_train:300``) to its objects; the
     packaged ones the library lacks are imported first. An object of a set that the importer refuses (a broken
     mesh) is left out with a warning naming it and why; one named on its own is an error. A name already in an
-    earlier argument's list is dropped from later ones; empty lists are dropped."""
+    earlier argument's list is dropped from later ones; empty lists are dropped. Imports run on ``workers``
+    processes."""
     from kgn_bench.objects.pybullet_set import ensure_objects
     from kgn_bench.shapes import OBJECTS, PRIMITIVES, is_known
     from kgn_bench.shapes.library import is_set_name, packaged, set_names
@@ -45,8 +46,8 @@ def _object_groups(items: list[str]) -> list[list[str]]:
         if not (is_known(n) or packaged(n)):
             raise ObjectError(f"unknown object {n!r}: neither built in, imported nor in a packaged set "
                               "(kgn-bench objects list)")
-    ensure_objects([n for n in names if n not in from_sets])
-    refused = ensure_objects([n for n in names if n in from_sets], refusals=True)
+    ensure_objects([n for n in names if n not in from_sets], workers=workers)
+    refused = ensure_objects([n for n in names if n in from_sets], workers=workers, refusals=True)
     if refused:
         warn(f"{len(refused)} object(s) of the set(s) could not be imported and are left out: "
              + "; ".join(f"{name} ({reason})" for name, reason in sorted(refused.items())))
@@ -60,9 +61,9 @@ def _object_groups(items: list[str]) -> list[list[str]]:
     return kept
 
 
-def _object_names(items: list[str]) -> list[str]:
+def _object_names(items: list[str], workers: int = 1) -> list[str]:
     """``_object_groups`` as one list of names, in order."""
-    return [n for g in _object_groups(items) for n in g]
+    return [n for g in _object_groups(items, workers) for n in g]
 
 
 def _add_generate(dsub) -> None:
@@ -95,7 +96,7 @@ def _cmd_data_generate(args) -> int:
 
     backend = make_backend(args)
     writable(args.out)
-    groups = _object_groups(args.objects or [])
+    groups = _object_groups(args.objects or [], args.workers if backend.kind == "local" else 1)
     objects = [n for g in groups for n in g]
     # each argument drawn equally often when one of several is a group or a set (GenerateConfig.groups)
     sizes = tuple(len(g) for g in groups) if len(groups) > 1 and max(map(len, groups)) > 1 else ()
@@ -163,11 +164,11 @@ def _cmd_data_vgn(args) -> int:
     from kgn_bench.data.vgn_generate import VGNDataConfig, generate_vgn_dataset
     from kgn_bench.shapes.library import test_set_leaks
 
-    objects = _object_names(args.objects)
+    backend = make_backend(args)
+    objects = _object_names(args.objects, args.workers if backend.kind == "local" else 1)
     leaks = test_set_leaks(objects)
     if leaks:
         return fail(f"{', '.join(sorted(leaks))}: real test objects (by name or mesh) never go into training data")
-    backend = make_backend(args)
     writable(args.out)
     config = VGNDataConfig(scenes=args.scenes, objects=tuple(objects), grasps_per_scene=args.grasps, seed=args.seed)
     stats = generate_vgn_dataset(config, args.out, workers=args.workers, progress=not args.quiet, backend=backend)
