@@ -100,3 +100,18 @@ def test_diverse_subset_spreads_over_closing_axes():
     assert vertical[pick].mean() < 0.5
     axes = np.argmax(np.abs(poses[pick, :3, 2]), axis=1)
     assert set(axes.tolist()) == {0, 1, 2}
+
+
+def test_aimed_approaches_stay_within_their_spread_of_the_direction():
+    """Asked for approaches along −z of a box's frame (from above it), every grasp approaches within 30° of
+    −z, no closing axis lies within 30° of it, and the box still gets grasps across both of its sides."""
+    box = trimesh.creation.box((0.04, 0.06, 0.10))
+    down = np.array([0.0, 0.0, -1.0])
+    poses, widths = sample_antipodal_grasps(box, np.random.default_rng(2), SamplingConfig(points=300), toward=down)
+    assert len(poses) > 50
+    approach_deg = np.rad2deg(np.arccos(np.clip(poses[:, :3, 0] @ down, -1.0, 1.0)))
+    assert approach_deg.max() <= 30.0 + 1e-6
+    assert np.all(np.abs(poses[:, :3, 2] @ down) < np.cos(np.deg2rad(30.0)))
+    assert set(np.round(widths - PINCH_CLEARANCE, 4)) == {0.04, 0.06}
+    uniform, _ = sample_antipodal_grasps(box, np.random.default_rng(2), SamplingConfig(points=300))
+    assert np.mean(uniform[:, :3, 0] @ down > np.cos(np.deg2rad(30.0))) < 0.2  # what aiming is for

@@ -211,7 +211,7 @@ def _not_exact(run: RunFiles, baseline: dict[str, Any], against: str | None) -> 
     if base.identity_sha256 != run.fingerprint.identity_sha256:
         differ = [k for k in IDENTITY if k in baseline and run.summary.get(k) != baseline.get(k)]
         return "the run's identity differs from the baseline's" + (f" ({', '.join(differ)})" if differ else
-                                                                    " (its task settings)")
+                                                                    " (its settings, weights or objects)")
     diff = environment_differences(base.environment, run.fingerprint.environment)
     if diff:
         return "the environment differs: " + "; ".join(diff)

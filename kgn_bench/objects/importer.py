@@ -16,8 +16,10 @@ The steps, each of which refuses a bad mesh with one ``ObjectError`` line and wr
 5. **decompose** the collision shape with CoACD (``hulls`` at most, seeded), cached by the SHA-256 of the
    repaired mesh and the settings, so a re-import costs nothing;
 6. **rest poses** from trimesh's quasi-static estimate (``compute_stable_poses``), the likely ones kept;
-7. **grasps**: antipodal candidates (``shapes.grasp_sampling``), at most ``verify`` of them checked in physics
-   (``sim.grasp_verify``): first ``objects.coverage.REST_GRASPS`` spread ones that the gripper can execute in
+7. **grasps**: antipodal candidates (``shapes.grasp_sampling``), and for each rest pose in which fewer than
+   ``objects.coverage.REST_GRASPS`` of them are executable, more aimed from above it (``_aim_at_short_poses``;
+   the manifest's ``grasps.aimed`` counts them); at most ``verify`` checked in physics (``sim.grasp_verify``):
+   first ``objects.coverage.REST_GRASPS`` spread ones that the gripper can execute in
    each rest pose (from above the table, ``objects.coverage``), then spread over closing and approach
    directions (``shapes.grasp_sampling.diverse_subset``); a rest pose left with fewer than a third of that
    holding gets as many candidates more, once. The ones that hold are the object's grasps (at least
@@ -408,7 +410,9 @@ def _keep_held(tmp: Path, mesh: trimesh.Trimesh, manifest: dict, poses: np.ndarr
 
     np.savez(tmp / "grasps.npz", poses=np.zeros((0, 4, 4)), widths=np.zeros(0))
     shape = MeshObject(tmp)
-    ok = executable(mesh, [r["R"] for r in manifest["rest_poses"]], poses, widths)
+    rotations = [r["R"] for r in manifest["rest_poses"]]
+    ok = executable(mesh, rotations, poses, widths)
+    poses, widths, ok, aimed = _aim_at_short_poses(mesh, rotations, poses, widths, ok, config, rng)
     checked, held = np.zeros(len(poses), dtype=bool), np.zeros(len(poses), dtype=bool)
     t1 = time.perf_counter()
     pick = coverage_subset(ok, poses, config.verify, rng)
@@ -427,7 +431,30 @@ def _keep_held(tmp: Path, mesh: trimesh.Trimesh, manifest: dict, poses: np.ndarr
     np.savez(tmp / "grasps.npz", poses=poses[held], widths=widths[held])
     for rest, row in zip(manifest["rest_poses"], ok):
         rest["grasps"] = int((row & held).sum())
-    return {"candidates": len(poses), "checked": int(checked.sum()), "held": int(held.sum())}, t_verify
+    counts = {"candidates": len(poses), "checked": int(checked.sum()), "held": int(held.sum())}
+    return counts | ({"aimed": aimed} if aimed else {}), t_verify
+
+
+def _aim_at_short_poses(mesh: trimesh.Trimesh, rotations: list, poses: np.ndarray, widths: np.ndarray,
+                        ok: np.ndarray, config: ImportConfig, rng: np.random.Generator
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """More candidates for each rest pose in which fewer than ``REST_GRASPS`` of ``poses`` are executable
+    (``ok``, (K, N)): antipodal grasps aimed from above it (``sample_antipodal_grasps`` toward ``R⁻¹ (0, 0,
+    −1)``, object frame), so that an object resting on a side the uniform sampling rarely approaches from above
+    (the Stanford bunny on its flank: 1 of 205) still gets grasps the selector can take. Returns the candidates
+    and their ``ok`` with the aimed ones appended, and how many were added (0: the inputs unchanged)."""
+    extra_p, extra_w = [], []
+    for k, R in enumerate(rotations):
+        if ok[k].sum() < REST_GRASPS:
+            down = np.asarray(R, dtype=float).T @ np.array([0.0, 0.0, -1.0])
+            p, w = sample_antipodal_grasps(mesh, rng, config.sampling, toward=down)
+            extra_p.append(p)
+            extra_w.append(w)
+    added = sum(len(w) for w in extra_w)
+    if not added:
+        return poses, widths, ok, 0
+    poses, widths = np.concatenate([poses, *extra_p]), np.concatenate([widths, *extra_w])
+    return poses, widths, executable(mesh, rotations, poses, widths), added
 
 
 def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig(), root: Path | None = None,

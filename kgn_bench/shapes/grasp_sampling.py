@@ -75,19 +75,37 @@ def _perpendicular(a: np.ndarray) -> np.ndarray:
 
 def sample_antipodal_grasps(mesh: trimesh.Trimesh, rng: np.random.Generator,
                             config: SamplingConfig = SamplingConfig(),
-                            surface: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                            surface: np.ndarray | None = None, toward: np.ndarray | None = None,
+                            spread_deg: float = 30.0) -> tuple[np.ndarray, np.ndarray]:
     """Candidate grasps ``(poses (N, 4, 4), widths (N,))`` on ``mesh`` whose gripper sweep is free of the
-    object's ``surface`` points (default: 4000 points sampled on the mesh)."""
+    object's ``surface`` points (default: 4000 points sampled on the mesh).
+
+    ``toward`` (a unit direction, object frame) aims the approaches instead of spreading them round the
+    closing axis: each pair's ``approaches`` grasps turn ``β ∈ [−spread_deg, spread_deg]`` (evenly) from
+    ``u`` = the direction's part perpendicular to the pair's axis, normalised; pairs whose axis is within 30° of
+    the direction cannot approach along it and are skipped. ``toward = R⁻¹ (0, 0, −1)`` asks for grasps from
+    above an object resting in the rotation ``R`` (``objects.coverage``)."""
     p, q = antipodal_pairs(mesh, rng, config)
     if len(p) == 0:
         return np.zeros((0, 4, 4)), np.zeros(0)
     span = q - p
     d = np.linalg.norm(span, axis=1)
     a = span / d[:, None]
-    u = _perpendicular(a)
-    v = np.cross(a, u)
     k = config.approaches
-    beta = rng.uniform(0.0, 2.0 * np.pi, len(p))[:, None] + 2.0 * np.pi * np.arange(k)[None] / k  # (M, k)
+    if toward is None:
+        u = _perpendicular(a)
+        beta = rng.uniform(0.0, 2.0 * np.pi, len(p))[:, None] + 2.0 * np.pi * np.arange(k)[None] / k  # (M, k)
+    else:
+        t = np.asarray(toward, dtype=float) / np.linalg.norm(toward)
+        along = a @ t
+        aimed = np.abs(along) < np.cos(np.deg2rad(30.0))
+        p, q, a, d, along = p[aimed], q[aimed], a[aimed], d[aimed], along[aimed]
+        if len(p) == 0:
+            return np.zeros((0, 4, 4)), np.zeros(0)
+        u = t[None] - along[:, None] * a
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        beta = np.broadcast_to(np.deg2rad(np.linspace(-spread_deg, spread_deg, k))[None], (len(p), k))
+    v = np.cross(a, u)
     x = np.cos(beta)[..., None] * u[:, None] + np.sin(beta)[..., None] * v[:, None]  # (M, k, 3)
     z = np.broadcast_to(a[:, None], x.shape)
     poses = np.tile(np.eye(4), (len(p) * k, 1, 1))
