@@ -73,3 +73,22 @@ def test_a_restored_scene_is_the_simulated_one_bit_for_bit(tmp_path, monkeypatch
         scene.step(500)
     for name in ("qpos", "qvel", "qacc_warmstart", "xpos", "mocap_pos"):
         assert np.array_equal(getattr(restored.data, name), getattr(simulated.data, name)), name
+
+
+def test_the_key_follows_the_arm_model(monkeypatch, tmp_path):
+    """Editing the arm's MJCF (a file, not a module) gives new keys: a set-up simulated with another arm is
+    never restored."""
+    from kgn_bench.bench import scene_cache
+
+    task = _task("ci_oracle", 1)
+    before = scene_key(task)
+    arm = tmp_path / "arm7.xml"
+    arm.write_text(scene_cache.arm_xml().read_text() + "<!-- edited -->\n")
+    monkeypatch.setattr(scene_cache, "arm_xml", lambda: arm)
+    scene_cache._code_sha256.cache_clear()
+    try:
+        assert scene_key(task) != before
+    finally:
+        monkeypatch.undo()
+        scene_cache._code_sha256.cache_clear()
+    assert scene_key(task) == before

@@ -10,9 +10,9 @@ restores that state instead of simulating the set-up again. What follows is the 
 
 **Key.** A file is ``<root>/<key>/<index>.npz``; ``key`` is the SHA-256 of everything the set-up depends on:
 the task's settings (all but where its trials run), the content of every imported object it names, the
-project's source code (every ``kgn_bench`` module, so any change of code makes new keys), and the versions of
-MuJoCo, NumPy and SciPy and the machine's architecture. A stale file can therefore not be found; a damaged
-or unreadable one is a miss and is written again.
+project's source code (every ``kgn_bench`` module and the arm's MJCF, so any change of them makes new keys),
+and the versions of MuJoCo, NumPy and SciPy and the machine's architecture. A stale file can therefore not be
+found; a damaged or unreadable one is a miss and is written again.
 
 **Where.** ``$KGN_BENCH_SCENE_CACHE`` if set (``0`` or ``off`` switch the cache off), else
 ``~/.cache/kgn-bench/scenes``. Files are a few kilobytes; written atomically (a temporary file renamed), so
@@ -35,6 +35,7 @@ import numpy as np
 import scipy
 
 from kgn_bench.config import TaskConfig
+from kgn_bench.resources import arm_xml
 from kgn_bench.shapes.library import object_sha256
 from kgn_bench.sim.scene import SceneState
 
@@ -61,11 +62,13 @@ def cache_root() -> Path | None:
 
 @lru_cache(maxsize=1)
 def _code_sha256() -> str:
+    """Every ``kgn_bench`` module and the arm's MJCF (``resources.arm_xml``), the scene's inputs that are files."""
     package = Path(__file__).resolve().parents[1]
     h = hashlib.sha256()
     for path in sorted(package.rglob("*.py")):
         h.update(path.relative_to(package).as_posix().encode() + b"\0")
         h.update(hashlib.sha256(path.read_bytes()).digest())
+    h.update(b"arm_xml\0" + hashlib.sha256(arm_xml().read_bytes()).digest())
     return h.hexdigest()
 
 
