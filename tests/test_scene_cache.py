@@ -1,5 +1,6 @@
 """Settled trial scenes kept on disk: a run that restores them gives the records of one that simulates the
-set-up, bit for bit, for spread single objects, piles, GIGA's piles and packed rounds; keys follow what the set-up depends on; a damaged file is a miss."""
+set-up, bit for bit, for spread single objects, piles, GIGA's piles and packed rounds; keys follow what the
+set-up depends on; a damaged file is a miss."""
 
 from __future__ import annotations
 
