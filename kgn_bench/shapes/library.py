@@ -105,22 +105,13 @@ def load_object(name: str) -> MeshObject:
 
 
 @lru_cache(maxsize=1024)
-def _folder_sha256(folder: Path, stamps: tuple[tuple[str, int, int], ...]) -> str:
-    h = hashlib.sha256()
-    for rel, _, _ in stamps:
-        h.update(rel.encode() + b"\0")
-        h.update(hashlib.sha256((folder / rel).read_bytes()).digest())
-    return h.hexdigest()
-
-
-@lru_cache(maxsize=1024)
-def _made_sha256(folder: Path, stamps: tuple[tuple[str, int, int], ...]) -> str:
-    """Like ``_folder_sha256``, with the manifest's stage times left out: what an import makes, not how long
-    it took."""
+def _folder_sha256(folder: Path, stamps: tuple[tuple[str, int, int], ...], made_only: bool = False) -> str:
+    """SHA-256 of the files ``stamps`` names in ``folder`` (by relative path); ``made_only`` leaves the
+    manifest's stage times out: what an import makes, not how long it took."""
     h = hashlib.sha256()
     for rel, _, _ in stamps:
         data = (folder / rel).read_bytes()
-        if rel == MANIFEST:
+        if made_only and rel == MANIFEST:
             manifest = json.loads(data)
             manifest.pop("timing_s", None)
             data = json.dumps(manifest, sort_keys=True).encode()
@@ -144,7 +135,7 @@ def shadowed(names: list[str] | tuple[str, ...]) -> dict[str, Path]:
     for name in dict.fromkeys(names):
         mine, theirs = user_root() / name, bundled / name
         if (mine / MANIFEST).is_file() and (theirs / MANIFEST).is_file():
-            if _made_sha256(mine, _stamps(mine)) != _made_sha256(theirs, _stamps(theirs)):
+            if _folder_sha256(mine, _stamps(mine), True) != _folder_sha256(theirs, _stamps(theirs), True):
                 out[name] = mine
     return out
 
