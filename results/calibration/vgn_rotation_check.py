@@ -1,6 +1,7 @@
-"""How well a VGN checkpoint predicts the approach of the positive grasps of scenes it was not trained on, beside
-the error of always answering "straight down" (world −z): the check that showed the rotation head learning
-only the mean.
+"""How well a VGN checkpoint predicts the rotation of the positive grasps of scenes it was not trained on: the
+approach (beside the error of always answering "straight down", world −z: the check that showed the rotation
+head learning only the mean) and the closing axis (the angle between the closing lines, 0-90°; a yaw drawn at
+random about the labelled approach gives 45° in median).
 
     python results/calibration/vgn_rotation_check.py CHECKPOINT DATASET FIRST_ID LAST_ID
 """
@@ -16,10 +17,12 @@ from kgn_bench.geometry import matrix_from_quat_wxyz
 from kgn_bench.model.vgn_checkpoint import load_vgn_model
 
 
-def approach_errors(net: torch.nn.Module, folder: Path, first: int, last: int) -> tuple[np.ndarray, np.ndarray]:
-    """(network, straight down): the angles (°) between the labelled approach of every positive grasp of the
-    scenes ``first`` ≤ id < ``last`` and the network's approach at its voxel, and world −z."""
-    predicted, down = [], []
+def approach_errors(net: torch.nn.Module, folder: Path, first: int, last: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(network, straight down, closing): the angles (°) between the labelled approach of every positive grasp
+    of the scenes ``first`` ≤ id < ``last`` and the network's approach at its voxel, and world −z; and between
+    the labelled and the predicted closing lines (``arccos |c · ĉ|``)."""
+    predicted, down, closing = [], [], []
     for name in list_scene_ids(folder):
         if not first <= int(name) < last:
             continue
@@ -28,17 +31,22 @@ def approach_errors(net: torch.nn.Module, folder: Path, first: int, last: int) -
             out = net(torch.from_numpy(scene.tsdf)[None, None])
         positive = scene.labels == 1
         i, j, k = np.rint(scene.voxels[positive]).astype(int).T
-        approach = matrix_from_quat_wxyz(scene.quats[positive].astype(float))[:, :, 0]
-        guess = matrix_from_quat_wxyz(out.rotation[0].numpy()[:, i, j, k].T.astype(float))[:, :, 0]
+        label = matrix_from_quat_wxyz(scene.quats[positive].astype(float))
+        net_rotation = matrix_from_quat_wxyz(out.rotation[0].numpy()[:, i, j, k].T.astype(float))
+        approach, guess = label[:, :, 0], net_rotation[:, :, 0]
+        dots = np.abs(np.sum(label[:, :, 2] * net_rotation[:, :, 2], axis=1))
+        closing += list(np.degrees(np.arccos(np.clip(dots, 0.0, 1.0))))
         predicted += list(np.degrees(np.arccos(np.clip(np.sum(approach * guess, axis=1), -1.0, 1.0))))
         down += list(np.degrees(np.arccos(np.clip(-approach[:, 2], -1.0, 1.0))))
-    return np.array(predicted), np.array(down)
+    return np.array(predicted), np.array(down), np.array(closing)
 
 
 if __name__ == "__main__":
     checkpoint, folder, first, last = Path(sys.argv[1]), Path(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-    for label, errors in zip(("network", "straight down"),
-                             approach_errors(load_vgn_model(checkpoint).net, folder, first, last)):
+    predicted, down, closing = approach_errors(load_vgn_model(checkpoint).net, folder, first, last)
+    print(f"      network: closing-line error median {np.median(closing):.1f}°, under 20° "
+          f"{100 * np.mean(closing < 20):.0f} % (a random yaw: 45°, 22 %)")
+    for label, errors in zip(("network", "straight down"), (predicted, down)):
         print(f"{label:>13}: approach error median {np.median(errors):.1f}°, 75th percentile "
               f"{np.percentile(errors, 75):.1f}°, under 20° {100 * np.mean(errors < 20):.0f} % "
               f"({len(errors)} positives)")
