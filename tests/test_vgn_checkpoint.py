@@ -81,3 +81,12 @@ def test_other_versions_and_grids_are_refused(tmp_path):
 def test_a_card_without_held_out_metrics():
     card = vgn_model_card({"history": [{"epoch": 1, "loss": 0.5, "held_out_loss": None, "accuracy": None}]}, "x", 1000)
     assert "held-out n/a" in card and "accuracy n/a" in card and "1: 0.500 / n/a" in card
+
+
+def test_a_card_states_the_datas_generation_cost():
+    data = {"dataset": {"generation_seconds": 9000.0, "objects": 303, "labels": "physics-floating-panda-v3"},
+            "history": []}
+    card = vgn_model_card(data, "x", 1000)
+    assert "| data generation | 2.5 core-hours" in card and "303 object types" in card
+    assert "physics-floating-panda-v3" in card
+    assert "data generation" not in vgn_model_card({"history": []}, "x", 1000)

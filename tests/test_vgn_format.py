@@ -59,6 +59,19 @@ def test_manifest_counts_and_identity(tmp_path, rng):
     assert finalize_dataset(tmp_path, GRID).sha256 != m.sha256
 
 
+def test_manifest_sums_the_scenes_generation_times(tmp_path, rng):
+    write_scene(tmp_path, 0, *_scene(rng), meta={"seconds": {"scene": 1.5, "view": 0.25, "label": 10.0}})
+    write_scene(tmp_path, 1, *_scene(rng), meta={"seconds": {"scene": 2.0, "view": 0.25, "label": 6.0}})
+    write_scene(tmp_path, 2, *_scene(rng))  # a scene that recorded no times adds none
+    m = finalize_dataset(tmp_path, GRID)
+    assert m.generation_seconds == pytest.approx(20.0) and read_manifest(tmp_path) == m
+    # a manifest from before the field reads as unknown
+    raw = json.loads((tmp_path / MANIFEST).read_text())
+    del raw["generation_seconds"]
+    (tmp_path / MANIFEST).write_text(json.dumps(raw))
+    assert read_manifest(tmp_path).generation_seconds is None
+
+
 def test_damaged_files_are_refused_with_one_line_naming_them(tmp_path, rng):
     write_scene(tmp_path, 0, *_scene(rng))
     write_scene(tmp_path, 1, *_scene(rng))

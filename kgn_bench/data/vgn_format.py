@@ -213,6 +213,9 @@ class VGNManifest:
     settings: dict[str, Any]
     scenes: tuple[SceneEntry, ...]
     sha256: str
+    generation_seconds: float | None = None
+    """The scenes' generation times summed (``meta["seconds"]``: arranging, viewing and labelling; CPU-core
+    seconds, whatever ran in parallel); None when the generator did not record them."""
 
     @property
     def grasps(self) -> int:
@@ -242,7 +245,7 @@ def finalize_dataset(folder: Path, grid: VoxelGrid | None = None, settings: dict
     ids = list_scene_ids(folder)
     if not ids:
         raise DatasetError(f"{folder}: no scene files under scenes/")
-    files = []
+    files, seconds = [], 0.0
     for name in ids:
         path = folder / "scenes" / f"{name}.npz"
         raw = path.read_bytes()
@@ -251,6 +254,7 @@ def finalize_dataset(folder: Path, grid: VoxelGrid | None = None, settings: dict
             raise DatasetError(f"{path}: a {scene.tsdf.shape} grid, the dataset's is {grid.resolution}³")
         files.append({"id": name, "grasps": len(scene), "positives": int(scene.labels.sum()),
                       "sha256": hashlib.sha256(raw).hexdigest()})
+        seconds += sum(float(v) for v in (scene.meta.get("seconds") or {}).values())
     manifest = {
         "format": VGN_DATASET_FORMAT,
         "version": VGN_DATASET_VERSION,
@@ -261,6 +265,7 @@ def finalize_dataset(folder: Path, grid: VoxelGrid | None = None, settings: dict
         "positives": sum(f["positives"] for f in files),
         "files": files,
         "sha256": _files_sha256(files),
+        "generation_seconds": round(seconds, 1),
     }
     atomic_write_text(folder / MANIFEST, json.dumps(manifest, indent=1) + "\n")
     return read_manifest(folder)
@@ -291,7 +296,9 @@ def read_manifest(folder: Path) -> VGNManifest:
         raise DatasetError(f"{path}: malformed manifest ({type(e).__name__}: {e})") from None
     if _files_sha256(files) != data.get("sha256"):
         raise DatasetError(f"{path}: the file list does not match the manifest's sha256 (edited by hand?)")
-    return VGNManifest(Path(folder), grid, dict(data.get("settings") or {}), scenes, str(data["sha256"]))
+    generation = data.get("generation_seconds")
+    return VGNManifest(Path(folder), grid, dict(data.get("settings") or {}), scenes, str(data["sha256"]),
+                       float(generation) if isinstance(generation, (int, float)) else None)
 
 
 def read_scene(folder: Path, scene: SceneEntry | int | str) -> VGNScene:

@@ -123,6 +123,9 @@ def vgn_model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str
         f"| data | `{ds.get('path', '?')}`: {ds.get('scenes', '?')} scenes ({ds.get('train_scenes', '?')} train, "
         f"{ds.get('held_out_scenes', '?')} held out), {ds.get('grasps', '?')} labelled grasps, "
         f"{ds.get('positives', '?')} positive (sha256 {str(ds.get('sha256', ''))[:12]}) |",
+        *([f"| data generation | {ds['generation_seconds'] / 3600:.1f} core-hours (every scene of the folder: "
+            f"arranging, viewing, labelling in physics), {ds.get('objects', '?')} object types, label rule "
+            f"`{ds.get('labels', '?')}` |"] if ds.get("generation_seconds") else []),
         f"| epochs | {data.get('epoch', '?')} (batch {train.get('batch_size', '?')} scenes, Adam lr "
         f"{train.get('lr', '?')}, augment {train.get('augment', '?')}, seed {train.get('seed', '?')}) |",
         f"| wall time | {seconds / 60:.0f} min |",

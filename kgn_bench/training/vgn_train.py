@@ -388,7 +388,9 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
     used = train_scenes + held_scenes
     identity = {"path": str(config.data), "sha256": manifest.sha256, "scenes": len(used),
                 "train_scenes": len(train_scenes), "held_out_scenes": len(held_scenes),
-                "grasps": sum(s.grasps for s in used), "positives": sum(s.positives for s in used)}
+                "grasps": sum(s.grasps for s in used), "positives": sum(s.positives for s in used),
+                "generation_seconds": manifest.generation_seconds,
+                "objects": len(manifest.settings.get("objects") or []), "labels": manifest.settings.get("labels")}
     net = VGNNet().to(dev).use_channels_last()
     optim = torch.optim.Adam(net.parameters(), lr=config.lr)
     commit, start, history = git_commit(), 0, []
