@@ -50,6 +50,10 @@ PLAN = "[benchmark]\ntasks = ['ci_oracle']\ndetectors = ['oracle']"
     (PLAN + VIEW + "param = 'camera.roll_deg'\nvalues = [45]", "unknown setting 'camera.roll_deg'"),
     (PLAN + VIEW + "param = 'camera.elevation_deg'\nvalues = [45]" + VIEW + "param = 'camera.elevation_deg'\n"
      "values = [60]", "the same name"),
+    (PLAN + "\nonly = {random = ['ci_oracle']}", "only names detector 'random', which is not in detectors"),
+    (PLAN + "\nonly = {oracle = ['pile']}", "only.oracle names task 'pile', which is not in tasks"),
+    (PLAN + "\nonly = {oracle = []}", "only.oracle must be a non-empty list"),
+    (PLAN + "\nonly = ['oracle']", "only must be a table"),
 ])
 def test_bad_plans_name_the_problem(tmp_path, body, fragment):
     plan = tmp_path / "plan.toml"
@@ -129,3 +133,25 @@ def test_benchmark_rejects_a_bad_setting_before_running(tmp_path, capsys):
     assert rc != 0
     assert "unknown setting 'selector.palm_width'" in capsys.readouterr().err
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_plan_keeps_a_detector_to_its_tasks(tmp_path, capsys):
+    task = (TASKS / "ci_oracle.toml").read_text()
+    for name, obj in (("tiny", "sphere"), ("other", "cuboid")):
+        body = task.replace('name = "ci_oracle"', f'name = "{name}"').replace("trials = ", "trials = 1 #")
+        (tmp_path / f"{name}.toml").write_text(body.split("[objects]")[0] + f'[objects]\nset = ["{obj}"]\n')
+    plan = tmp_path / "plan.toml"
+    plan.write_text("[benchmark]\ntasks = ['tiny', 'other@raw']\ndetectors = ['random', 'oracle']\n"
+                    "only = {random = ['other@raw']}\n"
+                    "[[benchmark.viewpoints]]\ntask = 'tiny'\nparam = 'camera.elevation_deg'\nvalues = [90]\n")
+    loaded = load_plan(plan)
+    assert loaded.only == (("random", ("other_raw",)),)
+    assert loaded.detectors_of("tiny") == ("oracle",) and loaded.detectors_of("other_raw") == ("random", "oracle")
+    runs = tmp_path / "runs"
+    assert main(["benchmark", str(plan), "--runs", str(runs), "--workers", "1", "--quiet"]) == 0
+    assert sorted(p.name for p in (runs / "tiny").iterdir()) == ["oracle"]
+    assert sorted(p.name for p in (runs / "other_raw").iterdir()) == ["oracle", "random"]
+    assert sorted(p.name for p in (runs / "viewpoints" / "tiny_elevation_deg").iterdir()
+                  if p.is_dir()) == ["oracle"]
+    table = (runs / "benchmark.md").read_text().split("| random |")[1].split("\n")[0]
+    assert "—" in table  # no run of random on tiny: its cell is empty, not a rate

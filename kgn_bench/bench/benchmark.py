@@ -25,6 +25,13 @@ A plan may repeat every (task, detector) over several seeds, as GIGA reports 5 s
 Each seed's run then goes to ``RUNS/<task>/<detector>/seed<k>`` and the report merges them into one cell
 (``report.merge_seeds``: the pooled rate with its Wilson interval, and the per-seed mean ± std).
 
+A plan may keep a detector to some of its tasks, where the others are outside what it is made for (``vgn``
+grasps with an 8 cm hand inside GIGA's 30 cm cube)::
+
+    only = {vgn = ["giga_packed", "giga_pile"]}   # plan entries, as in tasks; the report shows "—" elsewhere
+
+A detector that ``only`` restricts runs in no viewpoint study unless the study's task is one of its tasks.
+
 A plan is named by its path or its bundled name (``benchmark``); its task names are looked up beside the
 plan file, then among the bundled tasks. A task named ``name@mode`` is task ``name`` with ``selector.mode`` set
 to ``mode`` (``raw`` or ``assisted``), run and reported as ``name_mode``: one task file gives both the
@@ -77,6 +84,16 @@ class BenchmarkPlan:
     viewpoints: tuple[Viewpoints, ...] = ()
     seeds: tuple[int, ...] = ()
     """The seeds every (task, detector) runs with (module docstring); empty: each task's own."""
+    only: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    """(detector, the names of the tasks it runs) for the detectors the plan restricts (module docstring)."""
+
+    def runs(self, task: str, detector: str) -> bool:
+        """Whether ``detector`` runs on the task named ``task``."""
+        return all(task in tasks for det, tasks in self.only if det == detector)
+
+    def detectors_of(self, task: str) -> tuple[str, ...]:
+        """The plan's detectors that run on the task named ``task``, in plan order."""
+        return tuple(d for d in self.detectors if self.runs(task, d))
 
 
 def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] | None = None) -> BenchmarkPlan:
@@ -88,10 +105,10 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
     section = raw.get("benchmark")
     if not isinstance(section, dict) or set(raw) != {"benchmark"}:
         raise ConfigError(f"{path}: a plan has exactly one [benchmark] table")
-    unknown = set(section) - {"tasks", "detectors", "viewpoints", "seeds"}
+    unknown = set(section) - {"tasks", "detectors", "viewpoints", "seeds", "only"}
     if unknown:
         raise ConfigError(f"{path}: [benchmark] unknown key {sorted(unknown)[0]!r} (known: tasks, detectors, "
-                          "viewpoints, seeds)")
+                          "viewpoints, seeds, only)")
     seeds = section.get("seeds", [])
     if not isinstance(seeds, list) or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0
                                               for k in seeds) or len(set(seeds)) < len(seeds):
@@ -117,9 +134,27 @@ def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] |
                        if not tasks or v.get("task") in tasks)  # --tasks: the studies of those tasks only
     if len({v.name for v in viewpoints}) < len(viewpoints):
         raise ConfigError(f"{path}: two viewpoint studies have the same name; give one a name = ...")
+    only = _only(path, section.get("only", {}), names, dets)
     names = [n for n in names if not tasks or n in tasks]
     dets = [d for d in dets if not detectors or d in detectors]
-    return BenchmarkPlan(tuple(_plan_task(path, n) for n in names), tuple(dets), viewpoints, tuple(seeds))
+    return BenchmarkPlan(tuple(_plan_task(path, n) for n in names), tuple(dets), viewpoints, tuple(seeds), only)
+
+
+def _only(plan: Path, raw: object, names: list[str], dets: list[str]) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """The plan's ``only`` table (module docstring) as (detector, task names), every entry checked."""
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{plan}: [benchmark] only must be a table of detector = [tasks]")
+    out = []
+    for det, entries in raw.items():
+        if det not in dets:
+            raise ConfigError(f"{plan}: [benchmark] only names detector {det!r}, which is not in detectors")
+        if not isinstance(entries, list) or not entries or not all(isinstance(e, str) for e in entries):
+            raise ConfigError(f"{plan}: [benchmark] only.{det} must be a non-empty list of the plan's tasks")
+        for e in entries:
+            if e not in names:
+                raise ConfigError(f"{plan}: [benchmark] only.{det} names task {e!r}, which is not in tasks")
+        out.append((det, tuple(_plan_task(plan, e).name for e in entries)))
+    return tuple(out)
 
 
 def _viewpoints(plan: Path, k: int, raw: dict) -> Viewpoints:
@@ -171,10 +206,12 @@ def run_plan(plan: BenchmarkPlan, runs: Path, workers: int = 1, progress: bool =
     detector) runs once per seed into ``runs``/task/detector/seed<k>."""
     if plan.seeds:
         specs = [(task.with_overrides(seed=k), det, Path(runs) / task.name / det / f"seed{k}")
-                 for task in plan.tasks for det in plan.detectors for k in plan.seeds]
+                 for task in plan.tasks for det in plan.detectors_of(task.name) for k in plan.seeds]
     else:
-        specs = [(task, det, Path(runs) / task.name / det) for task in plan.tasks for det in plan.detectors]
-    sweeps = [(v, DetectorSweep(v.task, plan.detectors, v.param, v.values, Path(runs) / "viewpoints" / v.name))
+        specs = [(task, det, Path(runs) / task.name / det) for task in plan.tasks
+                 for det in plan.detectors_of(task.name)]
+    sweeps = [(v, DetectorSweep(v.task, plan.detectors_of(v.task.name), v.param, v.values,
+                                Path(runs) / "viewpoints" / v.name))
               for v in plan.viewpoints]
     sweep_runs = [sweep.runs() for _, sweep in sweeps]
     results = run_many(specs + [r for rs in sweep_runs for r in rs], workers=workers, progress=progress,
