@@ -4,6 +4,7 @@ head learning only the mean) and the closing axis (the angle between the closing
 random about the labelled approach gives 45° in median).
 
     python results/calibration/vgn_rotation_check.py CHECKPOINT DATASET FIRST_ID LAST_ID
+    python results/calibration/vgn_rotation_check.py CHECKPOINT DATASET held-out   # the run's held-out scenes
 """
 
 import sys
@@ -12,19 +13,19 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from kgn_bench.data.vgn_format import list_scene_ids, read_scene
+from kgn_bench.data.vgn_format import list_scene_ids, read_manifest, read_scene
 from kgn_bench.geometry import matrix_from_quat_wxyz
-from kgn_bench.model.vgn_checkpoint import load_vgn_model
+from kgn_bench.model.vgn_checkpoint import load_vgn_checkpoint, load_vgn_model
+from kgn_bench.training.vgn_train import split_scenes
 
 
-def approach_errors(net: torch.nn.Module, folder: Path, first: int, last: int
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def approach_errors(net: torch.nn.Module, folder: Path, ids: set[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(network, straight down, closing): the angles (°) between the labelled approach of every positive grasp
-    of the scenes ``first`` ≤ id < ``last`` and the network's approach at its voxel, and world −z; and between
-    the labelled and the predicted closing lines (``arccos |c · ĉ|``)."""
+    of the scenes ``ids`` and the network's approach at its voxel, and world −z; and between the labelled and
+    the predicted closing lines (``arccos |c · ĉ|``)."""
     predicted, down, closing = [], [], []
     for name in list_scene_ids(folder):
-        if not first <= int(name) < last:
+        if name not in ids:
             continue
         scene = read_scene(folder, name)
         with torch.inference_mode():
@@ -42,8 +43,14 @@ def approach_errors(net: torch.nn.Module, folder: Path, first: int, last: int
 
 
 if __name__ == "__main__":
-    checkpoint, folder, first, last = Path(sys.argv[1]), Path(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-    predicted, down, closing = approach_errors(load_vgn_model(checkpoint).net, folder, first, last)
+    checkpoint, folder = Path(sys.argv[1]), Path(sys.argv[2])
+    if sys.argv[3] == "held-out":  # the scenes the checkpoint's run held out (vgn_train.split_scenes)
+        train = load_vgn_checkpoint(checkpoint)["train"]
+        held = split_scenes(read_manifest(folder), train["held_out"], train["seed"], train.get("max_scenes", 0))[1]
+        ids = {s.id for s in held}
+    else:
+        ids = {name for name in list_scene_ids(folder) if int(sys.argv[3]) <= int(name) < int(sys.argv[4])}
+    predicted, down, closing = approach_errors(load_vgn_model(checkpoint).net, folder, ids)
     print(f"      network: closing-line error median {np.median(closing):.1f}°, under 20° "
           f"{100 * np.mean(closing < 20):.0f} % (a random yaw: 45°, 22 %)")
     for label, errors in zip(("network", "straight down"), (predicted, down)):
