@@ -87,13 +87,10 @@ class BenchmarkPlan:
     only: tuple[tuple[str, tuple[str, ...]], ...] = ()
     """(detector, the names of the tasks it runs) for the detectors the plan restricts (module docstring)."""
 
-    def runs(self, task: str, detector: str) -> bool:
-        """Whether ``detector`` runs on the task named ``task``."""
-        return all(task in tasks for det, tasks in self.only if det == detector)
-
     def detectors_of(self, task: str) -> tuple[str, ...]:
-        """The plan's detectors that run on the task named ``task``, in plan order."""
-        return tuple(d for d in self.detectors if self.runs(task, d))
+        """The plan's detectors that run on the task named ``task``, in plan order (``only`` applied)."""
+        kept = dict(self.only)
+        return tuple(d for d in self.detectors if d not in kept or task in kept[d])
 
 
 def load_plan(path: Path, tasks: list[str] | None = None, detectors: list[str] | None = None) -> BenchmarkPlan:

@@ -453,8 +453,9 @@ def _aim_at_short_poses(mesh: trimesh.Trimesh, rotations: list, poses: np.ndarra
     added = sum(len(w) for w in extra_w)
     if not added:
         return poses, widths, ok, 0
-    poses, widths = np.concatenate([poses, *extra_p]), np.concatenate([widths, *extra_w])
-    return poses, widths, executable(mesh, rotations, poses, widths), added
+    extra_p, extra_w = np.concatenate(extra_p), np.concatenate(extra_w)
+    ok = np.concatenate([ok, executable(mesh, rotations, extra_p, extra_w)], axis=1)  # per candidate: new ones only
+    return np.concatenate([poses, extra_p]), np.concatenate([widths, extra_w]), ok, added
 
 
 def import_mesh(path: str | Path, name: str, config: ImportConfig = ImportConfig(), root: Path | None = None,
