@@ -43,6 +43,23 @@ def test_round_trip(tmp_path, rng):
     assert got.tsdf.dtype == got.voxels.dtype == np.float32 and got.labels.dtype == np.uint8
 
 
+def test_every_yaws_outcome_round_trips_and_must_fit_the_labels(tmp_path, rng):
+    tsdf, voxels, quats, widths, labels = _scene(rng, 4, 2)
+    holds = np.array([[1, 1, 0], [1, 0, 0], [0, 0, 0], [0, 0, 0]], bool)
+    write_scene(tmp_path, 0, tsdf, voxels, quats, widths, labels, holds=holds)
+    got = read_scene(tmp_path, 0)
+    assert got.holds.dtype == bool
+    np.testing.assert_array_equal(got.holds, holds)
+    write_scene(tmp_path, 1, tsdf, voxels, quats, widths, labels)  # data without them still reads
+    assert read_scene(tmp_path, 1).holds is None
+    for bad, match in ((holds[:3], r"holds must be \(N, Y\)"), (holds * 2, "holds must be 0 or 1"),
+                       (holds[:, ::-1], "column 0 equal to the labels"),
+                       (np.array([[1, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 0]]), "no 1 on a negative")):
+        with pytest.raises(ValueError, match=match):
+            write_scene(tmp_path, 2, tsdf, voxels, quats, widths, labels, holds=bad)
+    assert not scene_path(tmp_path, 2).exists()
+
+
 def test_manifest_counts_and_identity(tmp_path, rng):
     write_scene(tmp_path, 0, *_scene(rng, 7, 3))
     write_scene(tmp_path, 1, *_scene(rng, 5, 0))

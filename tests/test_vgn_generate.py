@@ -10,6 +10,7 @@ from kgn_bench import giga
 from kgn_bench.data.format import DatasetError
 from kgn_bench.data.vgn_format import read_manifest, read_scene
 from kgn_bench.data.vgn_generate import (
+    GraspLabels,
     VGNDataConfig,
     generate_scene,
     generate_vgn_dataset,
@@ -20,7 +21,7 @@ from kgn_bench.data.vgn_generate import (
     to_voxels,
     widest_run_centre,
 )
-from kgn_bench.geometry import make_pose
+from kgn_bench.geometry import make_pose, rot_x
 from kgn_bench.gripper import PANDA_HAND
 from kgn_bench.shapes.primitives import Cuboid
 from kgn_bench.sim.floating_hand import FloatingHand, add_floating_cell, execute_grasp, precheck_grasp
@@ -34,6 +35,20 @@ def test_widest_run_centre_is_circular():
     assert widest_run_centre(np.array([0, 1, 1, 1, 0, 0], bool)) == 2
     assert widest_run_centre(np.array([1, 1, 0, 0, 0, 1], bool)) == 0  # the run 5, 0, 1 wraps past yaw π
     assert widest_run_centre(np.array([1, 0, 0, 1, 1, 0], bool)) == 3
+
+
+def test_turns_start_at_the_chosen_yaw_and_are_turns_about_the_approach():
+    """``GraspLabels.turns`` column j is the yaw j steps past the stored one, and that grasp is the stored pose
+    turned by ``j π / Y`` about its own approach axis (+x): the frame ``data.vgn_format`` documents."""
+    frames = grasp_frames(np.array([[0.1, 0.0, 0.05]]), np.array([[0.2, -0.3, 0.9]]), np.array([0.02]), 6)
+    holds = np.array([[0, 1, 1, 1, 0, 0]], bool)
+    chosen = np.array([widest_run_centre(holds[0])])
+    labels = GraspLabels(frames[np.arange(1), chosen], np.array([0.04]), np.array([True]), holds, chosen)
+    assert chosen[0] == 2 and labels.turns()[0].tolist() == [True, True, False, False, False, True]
+    for j in range(6):
+        turned = labels.poses[0, :3, :3] @ rot_x(j * np.pi / 6)
+        np.testing.assert_allclose(turned, frames[0, (2 + j) % 6, :3, :3] * (1 if 2 + j < 6 else [1, -1, -1]),
+                                   atol=1e-12)
 
 
 def test_grasp_frames_approach_into_the_surface_and_sweep_the_closing_axis():
@@ -74,6 +89,7 @@ def test_labels_hold_across_the_narrow_side_only():
     np.testing.assert_array_equal(scene.data.qpos, before)  # the scene is restored after labelling
     assert labels.holds[0, 0] and not labels.holds[0, 3]
     assert labels.labels[0] and widest_run_centre(labels.holds[0]) == 0
+    assert labels.chosen[0] == 0 and labels.turns()[0, 0]
     assert labels.widths[0] == pytest.approx(0.04, abs=0.004)
     voxels, quats, widths, keep = to_voxels(labels.poses, labels.widths)
     reference = labels.poses[0, :3, 3] - giga.GRASP_REFERENCE_DEPTH * labels.poses[0, :3, 0]  # 5 cm behind the tips
@@ -128,8 +144,10 @@ def test_grasp_views_look_down_at_the_workspace():
 def test_a_scene_is_reproducible_and_a_dataset_resumes_and_grows(tmp_path):
     config = VGNDataConfig(scenes=1, objects=("cuboid", "stick"), grasps_per_scene=12)
     a, b = generate_scene(config, 1), generate_scene(config, 1)
-    for key in ("tsdf", "voxels", "quats", "widths", "labels"):
+    for key in ("tsdf", "voxels", "quats", "widths", "labels", "holds"):
         np.testing.assert_array_equal(a[key], b[key])
+    assert a["holds"].shape == (len(a["labels"]), 6)
+    np.testing.assert_array_equal(a["holds"][:, 0], a["labels"])  # the stored yaw is one that held
     assert a["meta"]["arrangement"] == "packed" and a["tsdf"].shape == (40, 40, 40)
     assert 0.0 < a["tsdf"].max() < 1.0 and len(a["labels"]) > 0
     grid = a["voxels"] * giga.VOXEL_SIZE
@@ -142,6 +160,7 @@ def test_a_scene_is_reproducible_and_a_dataset_resumes_and_grows(tmp_path):
                                  progress=False)
     assert grown["scenes"] == 1 and len(read_manifest(out).scenes) == 2
     np.testing.assert_array_equal(read_scene(out, 1).labels, a["labels"])
+    np.testing.assert_array_equal(read_scene(out, 1).holds, a["holds"])
     with pytest.raises(DatasetError, match="grasps_per_scene"):
         generate_vgn_dataset(VGNDataConfig(scenes=2, objects=("cuboid", "stick"), grasps_per_scene=13), out,
                              progress=False)

@@ -20,6 +20,8 @@ from kgn_bench.training.vgn_train import (
     collate_scenes,
     export_vgn,
     flip_x,
+    held_out_metrics,
+    holding_rotation_loss,
     load_vgn_train_config,
     negatives_per_scene,
     rotate_scene,
@@ -27,6 +29,7 @@ from kgn_bench.training.vgn_train import (
     shift_scene,
     split_scenes,
     train_vgn,
+    turned,
     vgn_loss,
 )
 from kgn_bench.tsdf import VoxelGrid
@@ -40,8 +43,9 @@ def _random_quats(rng, n):
     return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def _dataset(folder, seed=0, scenes=4):
-    """``scenes`` scenes of a 16³ grid: a box on a floor, 12 labelled grasps each (positives on the box)."""
+def _dataset(folder, seed=0, scenes=4, holds=False):
+    """``scenes`` scenes of a 16³ grid: a box on a floor, 12 labelled grasps each (positives on the box); with
+    ``holds`` every positive also holds at the next of 6 yaws (a run of two)."""
     rng = np.random.default_rng(seed)
     for s in range(scenes):
         tsdf = np.zeros((R, R, R), np.float32)
@@ -52,7 +56,10 @@ def _dataset(folder, seed=0, scenes=4):
         on_top = np.column_stack([lo[:2] + rng.uniform(0, 3, (5, 2)), np.full(5, 9.0)])  # above the box
         voxels = np.concatenate([on_top, rng.uniform(0, R - 1, (n - 5, 3))])
         labels = np.array([1] * 5 + [0] * (n - 5))
-        write_scene(folder, s, tsdf, voxels, _random_quats(rng, n), rng.uniform(2, 8, n), labels)
+        turns = np.zeros((n, 6), bool)
+        turns[:, :2] = labels[:, None] == 1
+        write_scene(folder, s, tsdf, voxels, _random_quats(rng, n), rng.uniform(2, 8, n), labels,
+                    holds=turns if holds else None)
     return finalize_dataset(folder, GRID)
 
 
@@ -68,6 +75,7 @@ def test_config_file(tmp_path):
     for text, match in (('[vgn]\ndata = "d"\nepoch = 3\n', "unknown key 'epoch'"),
                         ('[vgn]\nepochs = 3\n', "data must name the dataset folder"),
                         ('[vgn]\ndata = "d"\nheld_out = 1.5\n', "held_out must lie in"),
+                        ('[vgn]\ndata = "d"\nrotation_target = "mean"\n', "rotation_target must be one of"),
                         ('[vgn]\ndata = "d"\n[model]\n', "unknown section")):
         path.write_text(text)
         with pytest.raises(VGNTrainConfigError, match=match) as e:
@@ -90,6 +98,33 @@ def test_the_rotation_loss_is_zero_for_both_forms_of_a_grasp(rng):
     quarter = np.stack([quat_wxyz_from_matrix(matrix_from_quat_wxyz(a) @ rot_x(np.pi / 2)) for a in q])
     torch.testing.assert_close(rotation_loss(torch.tensor(quarter), t),
                                torch.full((50,), 1 - np.cos(np.pi / 4), dtype=torch.float64))
+
+
+def test_turned_targets_are_turns_about_the_approach(rng):
+    q = _random_quats(rng, 5)
+    got = turned(torch.tensor(q), 6).numpy()
+    assert got.shape == (5, 6, 4)
+    for n in range(5):
+        for j in range(6):
+            np.testing.assert_allclose(matrix_from_quat_wxyz(got[n, j]),
+                                       matrix_from_quat_wxyz(q[n]) @ rot_x(j * np.pi / 6), atol=1e-9)
+
+
+def test_any_holding_yaw_is_a_right_answer(rng):
+    """The set target costs nothing at any holding turn (in either finger order), the turn's own cost at the
+    others, and falls back to the stored yaw where nothing held."""
+    q = torch.tensor(_random_quats(rng, 3))
+    holds = torch.tensor([[True, False, True, False, False, False], [True] * 6, [False] * 6])
+    turns = turned(q, 6)
+    for j in range(6):
+        pred = turns[:, j]
+        loss = holding_rotation_loss(pred, q, holds)
+        assert (float(loss[0]) < 1e-9) == (j in (0, 2)) and float(loss[1]) < 1e-9
+        torch.testing.assert_close(loss[2], rotation_loss(pred, q)[2])
+        torch.testing.assert_close(holding_rotation_loss(flip_x(pred), q, holds), loss)
+    # a prediction 30° off every holding turn costs 1 − cos(15°): the nearest one counts
+    torch.testing.assert_close(holding_rotation_loss(turns[:1, 1], q[:1], holds[:1]),
+                               torch.tensor([1 - np.cos(np.pi / 12)], dtype=q.dtype))
 
 
 # -- augmentation -------------------------------------------------------------------------------------------
@@ -138,6 +173,21 @@ def test_the_dataset_keeps_each_label_on_its_voxel(tmp_path, rng):
         assert item["tsdf"][0, i, j, k] == 1.0
         seen.add((i, j))
     assert len(seen) == 4  # every quarter turn occurred
+
+
+def test_the_dataset_carries_every_yaws_outcome_through_augmentation(tmp_path):
+    m = _dataset(tmp_path, scenes=2, holds=True)
+    ds = VGNSceneDataset(tmp_path, list(m.scenes), seed=0, augment=True, z_shift=3)
+    for epoch in range(4):
+        ds.set_epoch(epoch)
+        item = ds[0]
+        assert item["holds"].shape == (len(item["label"]), 6)
+        assert torch.equal(item["holds"][:, 0], item["label"] > 0.5) and torch.equal(item["holds"][:, 0],
+                                                                                     item["holds"][:, 1])
+    batch = collate_scenes([ds[0], ds[1]])
+    assert batch["holds"].shape == (len(batch["label"]), 6)
+    plain = _dataset(tmp_path / "plain", scenes=1)
+    assert "holds" not in VGNSceneDataset(tmp_path / "plain", list(plain.scenes), seed=0)[0]
 
 
 # -- balance and loss ----------------------------------------------------------------------------------------
@@ -243,6 +293,48 @@ def test_trains_resumes_and_refuses_another_dataset(tmp_path):
 
     weights, card = export_vgn(run, "vgn_tiny", tmp_path / "ship")
     assert load_vgn_model(weights).grid == GRID and "| sha256 |" in card.read_text()
+
+
+def test_the_holding_set_target_trains_and_reports_hits(tmp_path):
+    data = tmp_path / "data"
+    _dataset(data, holds=True)
+    cfg = VGNTrainConfig(data=str(data), epochs=1, batch_size=2, held_out=0.25, seed=1, rotation_target="any_holding")
+    train_vgn(cfg, tmp_path / "run", threads=1, device="cpu")
+    row = _history(tmp_path / "run")[0]
+    assert np.isfinite(row["rotation"]) and 0.0 <= row["rotation_hit"] <= 1.0
+    # a network that outputs a holding turn at every voxel hits every positive; one a quarter turn off, none
+    m = read_manifest(data)
+    ds = VGNSceneDataset(data, list(m.scenes), seed=0)
+    batch = collate_scenes([ds[n] for n in range(len(ds))])
+    _, first = np.unique(batch["index"].numpy(), axis=0, return_index=True)  # one label a voxel
+    batch = {key: (value if key == "tsdf" else value[torch.from_numpy(np.sort(first))]) for key, value in batch.items()}
+    assert int(batch["label"].sum()) > 5
+
+    class Constant(torch.nn.Module):
+        def __init__(self, q):
+            super().__init__()
+            self.q = q
+
+        def forward(self, tsdf):
+            b, _, r = tsdf.shape[:3]
+            out = VGNOutput(torch.full((b, 1, r, r, r), 0.9), torch.zeros(b, 4, r, r, r),
+                            torch.zeros(b, 1, r, r, r))
+            bb, i, j, k = batch["index"].unbind(1)
+            out.rotation[bb, :, i, j, k] = self.q
+            return out
+
+    loader = [batch]
+    assert held_out_metrics(Constant(turned(batch["quat"], 6)[:, 1]), loader, torch.device("cpu"),
+                            "any_holding")["rotation_hit"] == 1.0
+    assert held_out_metrics(Constant(turned(batch["quat"], 2)[:, 1]), loader, torch.device("cpu"),
+                            "any_holding")["rotation_hit"] == 0.0  # 90°: 60° past the run of 0° and 30°
+    # the set target needs data that stores every yaw's outcome
+    from kgn_bench.data.format import DatasetError
+
+    _dataset(tmp_path / "plain")
+    with pytest.raises(DatasetError, match="needs every yaw's outcome"):
+        train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "data": str(tmp_path / "plain")}), tmp_path / "run2",
+                  threads=1, device="cpu")
 
 
 def test_a_dataset_of_test_objects_is_never_trained_on(tmp_path):

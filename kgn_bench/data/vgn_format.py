@@ -21,6 +21,12 @@ A scene file holds the network input and every labelled grasp of that scene:
 - ``widths`` (N,) float32: the opening in voxels (metres / voxel; VGN stores the measured width of a success
   and the maximum opening of a failure);
 - ``labels`` (N,) uint8: 1 = the grasp held, 0 = it failed;
+- ``holds`` (N, Y) uint8, optional (label rule v4 on): every tried turn's outcome. ``holds[n, j] = 1`` when the
+  grasp ``n`` turned by ``j · π / Y`` about its own approach axis (+x), i.e. ``R_grid_grasp · R_x(j π / Y)``,
+  held; ``j = 0`` is the stored rotation itself, so a positive has ``holds[n, 0] = 1`` and a negative no 1 at
+  all. The turns and their 180° twins are every rotation about the approach that was tried, so ``holds`` is the
+  grasp's whole set of holding closing lines, of which ``quats`` stores one (VGN's label: the middle of the
+  widest run);
 - ``meta``: a JSON string (the generator's per-scene facts: seed, objects, arrangement), may be ``{}``.
 
 The manifest (``vgn_dataset.json``): ``format`` ("kgn-bench-vgn-dataset"), ``version``, ``grid`` (``size`` m,
@@ -77,6 +83,7 @@ VGN_DATASET_VERSION = 1
 MANIFEST = "vgn_dataset.json"
 _ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 _KEYS = ("tsdf", "voxels", "quats", "widths", "labels", "meta")
+_OPTIONAL = ("holds",)
 
 
 def _scene_name(scene_id: int | str) -> str:
@@ -105,13 +112,15 @@ class VGNScene:
     widths: np.ndarray
     labels: np.ndarray
     meta: dict[str, Any] = field(default_factory=dict)
+    holds: np.ndarray | None = None
+    """(N, Y) bool, every tried turn's outcome (module docstring), or None in data written without it."""
 
     def __len__(self) -> int:
         return len(self.labels)
 
 
 def _check_arrays(tsdf: np.ndarray, voxels: np.ndarray, quats: np.ndarray, widths: np.ndarray,
-                  labels: np.ndarray) -> str | None:
+                  labels: np.ndarray, holds: np.ndarray | None = None) -> str | None:
     """What is wrong with one scene's arrays (None if nothing)."""
     if tsdf.ndim != 3 or len(set(tsdf.shape)) != 1:
         return f"tsdf must be (R, R, R), got {tsdf.shape}"
@@ -132,15 +141,23 @@ def _check_arrays(tsdf: np.ndarray, voxels: np.ndarray, quats: np.ndarray, width
     r = tsdf.shape[0]
     if n and (voxels.min() < -0.5 or voxels.max() >= r - 0.5):
         return f"voxels must round into the grid [0, {r - 1}]"
+    if holds is not None:
+        if holds.ndim != 2 or holds.shape[0] != n or holds.shape[1] < 1:
+            return f"holds must be (N, Y) with N = {n} labels, got {holds.shape}"
+        if np.any(~np.isin(holds, (0, 1))):
+            return "holds must be 0 or 1"
+        if n and (np.any(holds[:, 0] != labels) or np.any(holds[labels == 0].any(axis=1))):
+            return "holds must have its column 0 equal to the labels and no 1 on a negative"
     return None
 
 
 def write_scene(folder: Path, scene_id: int | str, tsdf_input: np.ndarray, voxels: np.ndarray, quats: np.ndarray,
-                widths: np.ndarray, labels: np.ndarray, meta: dict[str, Any] | None = None) -> Path:
+                widths: np.ndarray, labels: np.ndarray, meta: dict[str, Any] | None = None,
+                holds: np.ndarray | None = None) -> Path:
     """Write one scene to ``folder/scenes/<id>.npz`` atomically (a reader, or a rerun after a kill, sees the old
-    file or the whole new one); returns its path. Arrays as in the module docstring (any float / int dtype:
-    stored as float32 / uint8). ``ValueError`` naming the problem for arrays that do not fit together (a bug in
-    the caller); ``OutputError`` if the folder cannot be written."""
+    file or the whole new one); returns its path. Arrays as in the module docstring (any float / int / bool
+    dtype: stored as float32 / uint8; ``holds`` only when given). ``ValueError`` naming the problem for arrays
+    that do not fit together (a bug in the caller); ``OutputError`` if the folder cannot be written."""
     tsdf = np.asarray(tsdf_input, dtype=np.float32)
     vox = np.asarray(voxels, dtype=np.float32)
     q = np.asarray(quats, dtype=np.float32)
@@ -148,14 +165,17 @@ def write_scene(folder: Path, scene_id: int | str, tsdf_input: np.ndarray, voxel
         vox, q = vox.reshape(0, 3), q.reshape(0, 4)
     w = np.asarray(widths, dtype=np.float32).reshape(-1)
     lab = np.asarray(labels).reshape(-1)
-    problem = _check_arrays(tsdf, vox, q, w, lab)
+    turns = None if holds is None else np.asarray(holds).astype(np.uint8)
+    problem = _check_arrays(tsdf, vox, q, w, lab, turns)
     if problem:
         raise ValueError(f"scene {scene_id!r}: {problem}")
     path = scene_path(folder, scene_id)
     path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(meta or {}, sort_keys=True)
-    atomic_write(path, lambda f: np.savez_compressed(f, tsdf=tsdf, voxels=vox, quats=q, widths=w,
-                                                     labels=lab.astype(np.uint8), meta=np.array(text)))
+    arrays = {"tsdf": tsdf, "voxels": vox, "quats": q, "widths": w, "labels": lab.astype(np.uint8),
+              "meta": np.array(json.dumps(meta or {}, sort_keys=True))}
+    if turns is not None:
+        arrays["holds"] = turns
+    atomic_write(path, lambda f: np.savez_compressed(f, **arrays))
     return path
 
 
@@ -176,17 +196,19 @@ def _parse(raw: bytes, path: Path, name: str) -> VGNScene:
             missing = [k for k in _KEYS if k not in z.files]
             if missing:
                 raise DatasetError(f"{path}: not a VGN scene file (lacks {', '.join(missing)})")
-            arrays = {k: z[k] for k in _KEYS}
+            arrays = {k: z[k] for k in _KEYS + _OPTIONAL if k in z.files}
         meta = json.loads(str(arrays["meta"]))
     except DatasetError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError, zipfile.LargeZipFile) as e:
         raise DatasetError(f"{path}: damaged scene file ({type(e).__name__})") from None
-    problem = _check_arrays(arrays["tsdf"], arrays["voxels"], arrays["quats"], arrays["widths"], arrays["labels"])
+    holds = arrays.get("holds")
+    problem = _check_arrays(arrays["tsdf"], arrays["voxels"], arrays["quats"], arrays["widths"], arrays["labels"],
+                            holds)
     if problem:
         raise DatasetError(f"{path}: {problem}")
     return VGNScene(name, arrays["tsdf"], arrays["voxels"], arrays["quats"], arrays["widths"], arrays["labels"],
-                    meta if isinstance(meta, dict) else {})
+                    meta if isinstance(meta, dict) else {}, None if holds is None else holds.astype(bool))
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,9 @@ hand's work cell (``sim.floating_hand``); objects that leave the workspace cube 
   the pre-grasp, on the way in or by closing on nothing (about 96 % of them, each ~7× cheaper than an
   execution); only the rest run in physics. A position is positive when some yaw holds; its rotation is the
   yaw in the middle of the longest run of holding yaws (circularly: yaw π is yaw 0) and its width the opening
-  measured there. A negative keeps yaw 0 and the hand's maximum opening.
+  measured there. A negative keeps yaw 0 and the hand's maximum opening. Every yaw's outcome is stored too
+  (``holds``, turned to start at the stored yaw; ``data.vgn_format``): where every yaw holds (a ball, the top
+  of a can) the stored yaw says nothing about the object, and a training may want the whole set.
 
 **The reference point.** The network predicts a grasp at each voxel; what it can see there decides what it can
 learn. VGN's position is its TCP, a finger depth behind the fingertips: in front of the sampled surface, in the
@@ -218,12 +220,21 @@ def widest_run_centre(holds: np.ndarray) -> int:
 @dataclass(frozen=True)
 class GraspLabels:
     """The labelled grasp positions of one scene: world ``poses`` (N, 4, 4) at the chosen yaw, ``widths`` (N,)
-    metres, ``labels`` (N,) bool, and ``holds`` (N, yaws) every yaw's outcome."""
+    metres, ``labels`` (N,) bool, ``holds`` (N, yaws) every yaw's outcome and ``chosen`` (N,) the index of the
+    yaw in ``poses`` (0 for a negative)."""
 
     poses: np.ndarray
     widths: np.ndarray
     labels: np.ndarray
     holds: np.ndarray
+    chosen: np.ndarray
+
+    def turns(self) -> np.ndarray:
+        """(N, yaws) bool: ``holds`` turned so that column ``j`` is the yaw ``j`` steps past the chosen one, the
+        grasp ``poses[n] · R_x(j π / yaws)`` (``data.vgn_format``'s ``holds``)."""
+        yaws = self.holds.shape[1]
+        cols = (self.chosen[:, None] + np.arange(yaws)[None, :]) % yaws
+        return np.take_along_axis(self.holds, cols, axis=1)
 
 
 def label_grasps(scene: Scene, hand: FloatingHand, frames: np.ndarray, precheck: bool = True) -> GraspLabels:
@@ -258,7 +269,8 @@ def label_grasps(scene: Scene, hand: FloatingHand, frames: np.ndarray, precheck:
     labels = best >= 0
     pick = np.where(labels, best, 0)
     rows = np.arange(n)
-    return GraspLabels(frames[rows, pick], np.where(labels, openings[rows, pick], hand.g.max_width), labels, holds)
+    return GraspLabels(frames[rows, pick], np.where(labels, openings[rows, pick], hand.g.max_width), labels, holds,
+                       pick)
 
 
 def to_voxels(poses: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -285,9 +297,9 @@ class VGNDataConfig:
     seed: int = 0
     snap: bool = True
     precheck: bool = True
-    labels: str = field(default="physics-floating-panda-v3")
+    labels: str = field(default="physics-floating-panda-v4")
     """The labelling rule's version (a change of rule makes another dataset). v2: the kinematic pre-check;
-    v3: positions at VGN's reference point."""
+    v3: positions at VGN's reference point; v4: every yaw's outcome stored (``holds``)."""
 
     def settings(self) -> dict[str, Any]:
         return {**asdict(self), "objects": list(self.objects)}
@@ -354,7 +366,7 @@ def generate_scene(config: VGNDataConfig, index: int) -> dict[str, Any]:
     meta = {"index": index, "arrangement": arrangement, "objects": [scene.objects[i].shape.name for i in in_play],
             "seconds": {"scene": round(t1 - t0, 3), "view": round(t2 - t1, 3), "label": round(t3 - t2, 3)}}
     return {"tsdf": volume.network_input(), "voxels": voxels[keep], "quats": quats[keep], "widths": widths[keep],
-            "labels": labels.labels[keep], "meta": meta}
+            "labels": labels.labels[keep], "holds": labels.turns()[keep], "meta": meta}
 
 
 GENERATOR = "vgn_generator.json"
@@ -398,7 +410,7 @@ def generate_vgn_dataset(config: VGNDataConfig, out: Path, workers: int = 1, pro
         nonlocal grasps
         index, scene = result
         write_scene(out, index, scene["tsdf"], scene["voxels"], scene["quats"], scene["widths"], scene["labels"],
-                    scene["meta"])
+                    scene["meta"], scene["holds"])
         grasps += len(scene["labels"])
         bar.update()
 

@@ -27,7 +27,15 @@ view of a table at a fixed height is what the detector sees.
     BCE(quality, label) + label · ( min_{t ∈ {q, q · R_x(π)}} (1 − |⟨q_pred, t⟩|) + 0.01 · (w_pred − w)² )
 
 with ``q · R_x(π)`` the same grasp with its fingers swapped (this project's grasp frame: x approach), widths in
-voxels. Adam (lr 3e-4 as VGN), a batch of ``batch_size`` scenes; the network runs in the channels-last 3D
+voxels. That is VGN's target (``rotation_target = "widest_run"``): ``q`` is the yaw in the middle of the widest
+run of holding yaws. Where every yaw holds (a ball, the top of a can) that yaw is
+an arbitrary world direction, and the k·90° augmentation then asks for four different answers to one picture.
+``rotation_target = "any_holding"`` (data with every yaw's outcome, ``data.vgn_format``'s ``holds``) takes the
+minimum over the whole holding set instead, ``min_{j : holds_j} ℓ(q_pred, q · R_x(j π / Y))`` (``ℓ`` the
+two-form term above), so every yaw that held is a right answer. The held-out metrics then report
+``rotation_hit``: the share of positives whose predicted rotation lies within 15° (geodesic) of a holding one.
+
+Adam (lr 3e-4 as VGN), a batch of ``batch_size`` scenes; the network runs in the channels-last 3D
 memory format (``VGNNet.use_channels_last``: 2.2× faster on the CPU).
 
 **Run folder** ``out``: ``last.pt`` (``model.vgn_checkpoint`` format, with the optimiser and torch RNG states,
@@ -74,6 +82,8 @@ from kgn_bench.shapes.library import test_set_leaks
 from kgn_bench.training.train import machine_label
 
 __all__ = [
+    "HIT_ANGLE",
+    "ROTATION_TARGETS",
     "VGNSceneDataset",
     "VGNTrainConfig",
     "VGNTrainConfigError",
@@ -81,6 +91,7 @@ __all__ = [
     "export_vgn",
     "flip_x",
     "held_out_metrics",
+    "holding_rotation_loss",
     "load_vgn_train_config",
     "negatives_per_scene",
     "quat_multiply",
@@ -89,8 +100,15 @@ __all__ = [
     "shift_scene",
     "split_scenes",
     "train_vgn",
+    "turned",
     "vgn_loss",
 ]
+
+
+ROTATION_TARGETS = ("widest_run", "any_holding")
+"""The rotation targets a run can train on (``VGNTrainConfig.rotation_target``)."""
+HIT_ANGLE = np.deg2rad(15.0)
+"""A predicted rotation within this geodesic angle of a holding one counts as a hit (half the 30° yaw step)."""
 
 
 class VGNTrainConfigError(KGNBenchError, ValueError):
@@ -118,6 +136,8 @@ class VGNTrainConfig:
     held_out: float = 0.1
     max_scenes: int = 0
     workers: int = 0
+    rotation_target: str = "widest_run"
+    """``widest_run`` (VGN's: the stored yaw) or ``any_holding`` (any yaw that held; module docstring)."""
 
     def __post_init__(self) -> None:
         if not self.data:
@@ -128,6 +148,9 @@ class VGNTrainConfig:
             raise ValueError(f"held_out must lie in [0, 1), got {self.held_out}")
         if self.z_shift < 0 or self.max_scenes < 0 or self.workers < 0:
             raise ValueError("z_shift, max_scenes and workers must be ≥ 0")
+        if self.rotation_target not in ROTATION_TARGETS:
+            raise ValueError(f"rotation_target must be one of {', '.join(ROTATION_TARGETS)}, "
+                             f"got {self.rotation_target!r}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -169,6 +192,25 @@ def rotation_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     a = 1.0 - (pred * target).sum(-1).abs()
     b = 1.0 - (pred * flip_x(target)).sum(-1).abs()
     return torch.minimum(a, b)
+
+
+def turned(target: torch.Tensor, turns: int) -> torch.Tensor:
+    """(M, Y, 4): ``t · R_x(j π / Y)`` for ``j = 0..Y−1`` (``Y = turns``), each grasp ``t`` (M, 4) turned about its
+    own approach axis by the yaw steps of its label (``data.vgn_format``'s ``holds``)."""
+    half = torch.arange(turns, dtype=target.dtype, device=target.device) * (math.pi / (2 * turns))
+    c, s_ = torch.cos(half)[None, :], torch.sin(half)[None, :]
+    w, x, y, z = (v[:, None] for v in target.unbind(-1))
+    return torch.stack([w * c - x * s_, x * c + w * s_, y * c + z * s_, z * c - y * s_], dim=-1)
+
+
+def holding_rotation_loss(pred: torch.Tensor, target: torch.Tensor, holds: torch.Tensor) -> torch.Tensor:
+    """(M,) ``min_{j : holds_j} rotation_loss(p, t · R_x(j π / Y))`` for predictions and stored rotations (M, 4)
+    and ``holds`` (M, Y) bool: 0 when ``p`` is any grasp that held. Rows without a holding turn (negatives) get
+    ``rotation_loss(p, t)``."""
+    turns = turned(target, holds.shape[1])
+    each = rotation_loss(pred[:, None, :].expand_as(turns), turns)
+    best = torch.where(holds, each, torch.full_like(each, 2.0)).amin(dim=1)
+    return torch.where(holds.any(dim=1), best, each[:, 0])
 
 
 # -- augmentation ----------------------------------------------------------------------------------------------
@@ -235,7 +277,8 @@ def negatives_per_scene(scenes: list[SceneEntry], rng: np.random.Generator) -> n
 class VGNSceneDataset(Dataset):
     """The scenes of one split as training samples (module docstring: balance, augmentation). Item ``n`` is a
     dict: ``tsdf`` (1, R, R, R) float32, ``index`` (M, 3) long (rounded voxel, clipped into the grid),
-    ``quat`` (M, 4), ``width`` (M,) voxels, ``label`` (M,) float32. ``set_epoch`` redraws the balance."""
+    ``quat`` (M, 4), ``width`` (M,) voxels, ``label`` (M,) float32, and ``holds`` (M, Y) bool where the data
+    stores every yaw's outcome. ``set_epoch`` redraws the balance."""
 
     def __init__(self, folder: Path, scenes: list[SceneEntry], seed: int, augment: bool = False, z_shift: int = 0,
                  balance: bool = True) -> None:
@@ -267,32 +310,43 @@ class VGNSceneDataset(Dataset):
         keep = np.sort(np.concatenate([np.flatnonzero(labels), chosen]).astype(np.int64))
         tsdf, voxels, quats = scene.tsdf, scene.voxels[keep], scene.quats[keep]
         widths, label = scene.widths[keep], scene.labels[keep]
+        holds = None if scene.holds is None else scene.holds[keep]
         if self.augment:
+            # turns are relative to the grasp's own frame: a turn of the scene leaves them as they are
             tsdf, voxels, quats = rotate_scene(tsdf, voxels, quats, int(rng.integers(4)))
             if self.z_shift:
                 tsdf, voxels, inside = shift_scene(tsdf, voxels, int(rng.integers(-self.z_shift, self.z_shift + 1)))
                 voxels, quats, widths, label = voxels[inside], quats[inside], widths[inside], label[inside]
+                holds = None if holds is None else holds[inside]
         r = tsdf.shape[0]
         index = np.clip(np.round(voxels), 0, r - 1).astype(np.int64)
-        return {"tsdf": torch.from_numpy(np.ascontiguousarray(tsdf, dtype=np.float32))[None],
+        item = {"tsdf": torch.from_numpy(np.ascontiguousarray(tsdf, dtype=np.float32))[None],
                 "index": torch.from_numpy(index.reshape(-1, 3)),
                 "quat": torch.from_numpy(np.asarray(quats, dtype=np.float32).reshape(-1, 4)),
                 "width": torch.from_numpy(np.asarray(widths, dtype=np.float32)),
                 "label": torch.from_numpy(np.asarray(label, dtype=np.float32))}
+        if holds is not None:
+            item["holds"] = torch.from_numpy(np.ascontiguousarray(holds, dtype=bool))
+        return item
 
 
 def collate_scenes(batch: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
     """A batch of scenes: ``tsdf`` (B, 1, R, R, R), ``index`` (M, 4) = (scene in batch, i, j, k) and the
-    labels of all scenes concatenated (``quat`` (M, 4), ``width`` (M,), ``label`` (M,))."""
+    labels of all scenes concatenated (``quat`` (M, 4), ``width`` (M,), ``label`` (M,), and ``holds`` (M, Y)
+    when every scene has them)."""
     index = torch.cat([F.pad(item["index"], (1, 0), value=b) for b, item in enumerate(batch)])
+    keys = ("quat", "width", "label") + (("holds",) if all("holds" in item for item in batch) else ())
     return {"tsdf": torch.stack([item["tsdf"] for item in batch]), "index": index,
-            **{key: torch.cat([item[key] for item in batch]) for key in ("quat", "width", "label")}}
+            **{key: torch.cat([item[key] for item in batch]) for key in keys}}
 
 
-def vgn_loss(out: VGNOutput, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, float]]:
-    """The mean over the batch's labelled voxels of ``BCE + label · (rotation_loss + 0.01 · Δw²)`` (module
-    docstring) and its parts as floats: ``loss``, ``bce`` (mean over all labels), ``rotation`` and ``width``
-    (means over the positives; 0 without any), ``labels`` (how many)."""
+def vgn_loss(out: VGNOutput, batch: dict[str, torch.Tensor], rotation_target: str = "widest_run"
+             ) -> tuple[torch.Tensor, dict[str, float]]:
+    """The mean over the batch's labelled voxels of ``BCE + label · (rotation term + 0.01 · Δw²)`` (module
+    docstring; the rotation term ``rotation_loss`` against the stored yaw, or ``holding_rotation_loss`` for
+    ``rotation_target = "any_holding"``, which needs the batch's ``holds``) and its parts as floats: ``loss``,
+    ``bce`` (mean over all labels), ``rotation`` and ``width`` (means over the positives; 0 without any),
+    ``labels`` (how many)."""
     b, i, j, k = batch["index"].unbind(1)
     label = batch["label"]
     if len(label) == 0:
@@ -300,7 +354,11 @@ def vgn_loss(out: VGNOutput, batch: dict[str, torch.Tensor]) -> tuple[torch.Tens
         return zero, {"loss": 0.0, "bce": 0.0, "rotation": 0.0, "width": 0.0, "labels": 0}
     quality = out.quality[b, 0, i, j, k].clamp(1e-7, 1 - 1e-7)
     bce = F.binary_cross_entropy(quality, label, reduction="none")
-    rot = rotation_loss(out.rotation[b, :, i, j, k], batch["quat"])
+    pred = out.rotation[b, :, i, j, k]
+    if rotation_target == "any_holding":
+        rot = holding_rotation_loss(pred, batch["quat"], batch["holds"])
+    else:
+        rot = rotation_loss(pred, batch["quat"])
     width = 0.01 * (out.width[b, 0, i, j, k] - batch["width"]) ** 2
     loss = (bce + label * (rot + width)).mean()
     with torch.no_grad():
@@ -315,19 +373,33 @@ def _to(batch: dict[str, torch.Tensor], device: torch.device) -> dict[str, torch
     return {k: v.to(device, non_blocking=device.type == "cuda") for k, v in batch.items()}
 
 
-def held_out_metrics(net: VGNNet, loader: DataLoader, device: torch.device) -> dict[str, float | None]:
-    """``held_out_loss`` (mean over labels), ``accuracy``, ``precision`` and ``recall`` of ``round(quality)`` at
-    the labelled voxels of every scene the loader yields (None where undefined, e.g. no predicted positive).
-    The network is in eval mode during the call and back in its previous mode after."""
+def held_out_metrics(net: VGNNet, loader: DataLoader, device: torch.device, rotation_target: str = "widest_run"
+                     ) -> dict[str, float | None]:
+    """``held_out_loss`` (mean over labels, the run's ``rotation_target``), ``accuracy``, ``precision`` and
+    ``recall`` of ``round(quality)`` at the labelled voxels of every scene the loader yields, and, where the data
+    stores every yaw's outcome, ``rotation_hit``: the share of positives whose predicted rotation lies within
+    ``HIT_ANGLE`` of a holding one (None where undefined, e.g. no predicted positive). The network is in eval
+    mode during the call and back in its previous mode after."""
     was_training = net.training
     net.eval()
     tp = fp = tn = fn = 0
     loss_sum, count = 0.0, 0
+    hits, positives, with_holds = 0, 0, True
+    hit_loss = 1.0 - math.cos(HIT_ANGLE / 2.0)  # rotation_loss is 1 − cos(θ/2) for a geodesic angle θ
     with torch.inference_mode():
         for batch in loader:
             batch = _to(batch, device)
             out = net(batch["tsdf"])
-            loss, parts = vgn_loss(out, batch)
+            loss, parts = vgn_loss(out, batch, rotation_target)
+            if "holds" in batch:
+                b, i, j, k = batch["index"].unbind(1)
+                pos = batch["label"] > 0.5
+                rot = holding_rotation_loss(out.rotation[b, :, i, j, k][pos], batch["quat"][pos],
+                                            batch["holds"][pos])
+                hits += int((rot <= hit_loss).sum())
+                positives += int(pos.sum())
+            else:
+                with_holds = False
             loss_sum += float(loss) * parts["labels"]
             count += parts["labels"]
             b, i, j, k = batch["index"].unbind(1)
@@ -338,10 +410,13 @@ def held_out_metrics(net: VGNNet, loader: DataLoader, device: torch.device) -> d
             tn += int((~pred & ~truth).sum())
             fn += int((~pred & truth).sum())
     net.train(was_training)
-    return {"held_out_loss": loss_sum / count if count else None,
-            "accuracy": (tp + tn) / count if count else None,
-            "precision": tp / (tp + fp) if tp + fp else None,
-            "recall": tp / (tp + fn) if tp + fn else None}
+    metrics: dict[str, float | None] = {"held_out_loss": loss_sum / count if count else None,
+                                        "accuracy": (tp + tn) / count if count else None,
+                                        "precision": tp / (tp + fp) if tp + fp else None,
+                                        "recall": tp / (tp + fn) if tp + fn else None}
+    if with_holds and count:
+        metrics["rotation_hit"] = hits / positives if positives else None
+    return metrics
 
 
 # -- the run --------------------------------------------------------------------------------------------------
@@ -382,6 +457,9 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
     train_scenes, held_scenes = split_scenes(manifest, config.held_out, config.seed, config.max_scenes)
     if not train_scenes:
         raise DatasetError(f"{config.data}: no training scene")
+    if config.rotation_target == "any_holding" and read_scene(manifest.folder, train_scenes[0]).holds is None:
+        raise DatasetError(f"{config.data}: rotation_target = 'any_holding' needs every yaw's outcome, which this "
+                           "dataset does not store (label rule v4 on: regenerate it with `kgn-bench data vgn`)")
     train_set = VGNSceneDataset(manifest.folder, train_scenes, config.seed, config.augment, config.z_shift,
                                 config.balance)
     held_set = VGNSceneDataset(manifest.folder, held_scenes, config.seed + 1, balance=config.balance)
@@ -427,7 +505,7 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
         labels = 0
         for batch in _loader(train_set, config, dev, config.seed * 1000 + epoch):
             batch = _to(batch, dev)
-            loss, parts = vgn_loss(net(batch["tsdf"]), batch)
+            loss, parts = vgn_loss(net(batch["tsdf"]), batch, config.rotation_target)
             if not math.isfinite(parts["loss"]):
                 raise FloatingPointError(f"VGN loss became {parts['loss']} in epoch {epoch + 1}; lower lr")
             optim.zero_grad(set_to_none=True)
@@ -439,7 +517,7 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
                 sums[key] = sums.get(key, 0.0) + parts[key] * n
         row: dict[str, Any] = {"epoch": epoch + 1, **{k: round(v / max(labels, 1), 6) for k, v in sums.items()},
                                "labels": labels}
-        row.update(held_out_metrics(net, held_loader, dev) if len(held_set) else {})
+        row.update(held_out_metrics(net, held_loader, dev, config.rotation_target) if len(held_set) else {})
         row["seconds"] = round(time.perf_counter() - t0, 2)
         history.append(row)
         atomic_write_text(out / "history.jsonl", "".join(json.dumps(h) + "\n" for h in history))
