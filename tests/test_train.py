@@ -8,7 +8,14 @@ import torch
 from kgn_bench.environment import cpu_model
 from kgn_bench.eval.vision import held_out_evaluator
 from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model
-from kgn_bench.training.train import TrainConfigError, autocast_dtype, load_train_config, machine_label, train
+from kgn_bench.training.train import (
+    TrainConfigError,
+    autocast_dtype,
+    bfloat16_emulated,
+    load_train_config,
+    machine_label,
+    train,
+)
 
 TINY = """
 [train]
@@ -123,6 +130,16 @@ def test_autocast_follows_the_precision_the_device_and_the_kernels(monkeypatch):
     assert autocast_dtype(cpu, "auto", plain) is None
     with pytest.raises(ValueError, match="precision"):
         autocast_dtype(cpu, "half")
+
+
+def test_a_forced_bfloat16_is_named_where_the_cpu_would_emulate_it(monkeypatch):
+    cpu, cuda = torch.device("cpu"), torch.device("cuda")
+    bf16, plain = frozenset({"avx2", "avx512_bf16"}), frozenset({"avx2"})
+    monkeypatch.setenv("KGN_BENCH_KERNELS", "native")
+    assert bfloat16_emulated(cpu, "bfloat16", plain) and not bfloat16_emulated(cpu, "bfloat16", bf16)
+    assert not bfloat16_emulated(cpu, "auto", plain) and not bfloat16_emulated(cuda, "bfloat16", plain)
+    monkeypatch.setenv("KGN_BENCH_KERNELS", "portable")
+    assert bfloat16_emulated(cpu, "bfloat16", bf16)
 
 
 def test_stride_two_bfloat16_run_trains_and_loads_as_a_stride_two_detector(tmp_path, tiny_dataset):

@@ -40,7 +40,7 @@ from torch.utils.data import DataLoader
 from kgn_bench.config import override_tables, parse_section, read_toml, resolve_task
 from kgn_bench.data.format import DatasetError
 from kgn_bench.environment import cpu_model
-from kgn_bench.errors import KGNBenchError
+from kgn_bench.errors import KGNBenchError, warn
 from kgn_bench.kernels import cpu_flags
 from kgn_bench.kernels import mode as kernels_mode
 from kgn_bench.model.checkpoint import (
@@ -62,7 +62,8 @@ from kgn_bench.shapes.library import test_set_leaks
 from kgn_bench.threads import available_cores
 from kgn_bench.training.dataset import AugmentConfig, GraspViewDataset
 
-__all__ = ["PRECISIONS", "HeldOutEvaluator", "TrainConfig", "TrainConfigError", "autocast_dtype", "load_train_config",
+__all__ = ["PRECISIONS", "HeldOutEvaluator", "TrainConfig", "TrainConfigError", "autocast_dtype", "bfloat16_emulated",
+           "load_train_config",
            "machine_label", "train", "train_step"]
 
 PRECISIONS = ("auto", "float32", "bfloat16")
@@ -181,6 +182,17 @@ def autocast_dtype(device: torch.device, precision: str = "auto", flags: frozens
         return torch.bfloat16
     flags = cpu_flags() if flags is None else flags
     return torch.bfloat16 if device.type == "cpu" and kernels_mode() == "native" and BF16_FLAGS & flags else None
+
+
+def bfloat16_emulated(device: torch.device, precision: str, flags: frozenset[str] | None = None) -> bool:
+    """Whether ``precision`` asks for bfloat16 on a CPU that would emulate it: ``bfloat16`` on a CPU whose
+    ``flags`` (default this one's) lack native bfloat16 instructions, or whose kernels are capped at AVX2
+    (``KGN_BENCH_KERNELS`` not ``native``). oneDNN then takes a step many times longer than float32 (a KGNv2
+    step: about 8 s against 0.5 s, ``results/perf.md``); ``auto`` would pick float32 there."""
+    if precision != "bfloat16" or device.type != "cpu":
+        return False
+    flags = cpu_flags() if flags is None else flags
+    return not (kernels_mode() == "native" and BF16_FLAGS & flags)
 
 
 def train_step(net: KGNNet, optim: torch.optim.Optimizer, x: torch.Tensor, targets: dict[str, torch.Tensor],
@@ -367,6 +379,9 @@ def train(cfg: TrainConfig, progress: bool = True, device: str | None = None, th
     """
     t_cfg = cfg.train
     run = _start_run(cfg, device, threads)
+    if bfloat16_emulated(run.device, t_cfg.precision):
+        warn(f"{t_cfg.out}: precision = 'bfloat16' on a CPU without native bfloat16 (or with the portable "
+             "kernels): oneDNN emulates it and a step takes many times longer; precision = 'auto' picks float32 here")
     _resume(run)
     run.net.train()
     for epoch in range(run.start, t_cfg.epochs):
