@@ -91,6 +91,7 @@ __all__ = [
     "export_vgn",
     "flip_x",
     "held_out_metrics",
+    "holding_hits",
     "holding_rotation_loss",
     "load_vgn_train_config",
     "negatives_per_scene",
@@ -211,6 +212,13 @@ def holding_rotation_loss(pred: torch.Tensor, target: torch.Tensor, holds: torch
     each = rotation_loss(pred[:, None, :].expand_as(turns), turns)
     best = torch.where(holds, each, torch.full_like(each, 2.0)).amin(dim=1)
     return torch.where(holds.any(dim=1), best, each[:, 0])
+
+
+def holding_hits(pred: torch.Tensor, target: torch.Tensor, holds: torch.Tensor) -> torch.Tensor:
+    """(M,) bool: whether each prediction lies within ``HIT_ANGLE`` (geodesic) of a rotation that held, for
+    predictions and stored rotations (M, 4) and ``holds`` (M, Y). ``rotation_loss`` is ``1 − cos(θ/2)`` for a
+    geodesic angle ``θ``, so the test is ``holding_rotation_loss ≤ 1 − cos(HIT_ANGLE / 2)``."""
+    return holding_rotation_loss(pred, target, holds) <= 1.0 - math.cos(HIT_ANGLE / 2.0)
 
 
 # -- augmentation ----------------------------------------------------------------------------------------------
@@ -385,7 +393,6 @@ def held_out_metrics(net: VGNNet, loader: DataLoader, device: torch.device, rota
     tp = fp = tn = fn = 0
     loss_sum, count = 0.0, 0
     hits, positives, with_holds = 0, 0, True
-    hit_loss = 1.0 - math.cos(HIT_ANGLE / 2.0)  # rotation_loss is 1 − cos(θ/2) for a geodesic angle θ
     with torch.inference_mode():
         for batch in loader:
             batch = _to(batch, device)
@@ -394,9 +401,8 @@ def held_out_metrics(net: VGNNet, loader: DataLoader, device: torch.device, rota
             if "holds" in batch:
                 b, i, j, k = batch["index"].unbind(1)
                 pos = batch["label"] > 0.5
-                rot = holding_rotation_loss(out.rotation[b, :, i, j, k][pos], batch["quat"][pos],
-                                            batch["holds"][pos])
-                hits += int((rot <= hit_loss).sum())
+                hits += int(holding_hits(out.rotation[b, :, i, j, k][pos], batch["quat"][pos],
+                                         batch["holds"][pos]).sum())
                 positives += int(pos.sum())
             else:
                 with_holds = False

@@ -18,7 +18,7 @@ import torch
 from kgn_bench.data.vgn_format import list_scene_ids, read_manifest, read_scene
 from kgn_bench.geometry import matrix_from_quat_wxyz
 from kgn_bench.model.vgn_checkpoint import load_vgn_checkpoint, load_vgn_model
-from kgn_bench.training.vgn_train import HIT_ANGLE, holding_rotation_loss, split_scenes
+from kgn_bench.training.vgn_train import HIT_ANGLE, holding_hits, split_scenes
 
 
 def approach_errors(net: torch.nn.Module, folder: Path, ids: set[str]
@@ -38,7 +38,8 @@ def approach_errors(net: torch.nn.Module, folder: Path, ids: set[str]
         positive = scene.labels == 1
         i, j, k = np.rint(scene.voxels[positive]).astype(int).T
         label = matrix_from_quat_wxyz(scene.quats[positive].astype(float))
-        net_rotation = matrix_from_quat_wxyz(out.rotation[0].numpy()[:, i, j, k].T.astype(float))
+        pred = out.rotation[0].numpy()[:, i, j, k].T.astype(np.float64)
+        net_rotation = matrix_from_quat_wxyz(pred)
         approach, guess = label[:, :, 0], net_rotation[:, :, 0]
         dots = np.abs(np.sum(label[:, :, 2] * net_rotation[:, :, 2], axis=1))
         closing += list(np.degrees(np.arccos(np.clip(dots, 0.0, 1.0))))
@@ -46,9 +47,8 @@ def approach_errors(net: torch.nn.Module, folder: Path, ids: set[str]
         down += list(np.degrees(np.arccos(np.clip(-approach[:, 2], -1.0, 1.0))))
         if scene.holds is not None:
             holds = torch.from_numpy(scene.holds[positive])
-            pred = torch.from_numpy(out.rotation[0].numpy()[:, i, j, k].T.astype(np.float64))
-            loss = holding_rotation_loss(pred, torch.from_numpy(scene.quats[positive].astype(np.float64)), holds)
-            hit += list((loss <= 1.0 - np.cos(HIT_ANGLE / 2.0)).numpy())
+            hit += list(holding_hits(torch.from_numpy(pred), torch.from_numpy(scene.quats[positive].astype(np.float64)),
+                                     holds).numpy())
             # a uniform yaw hits a holding turn when it lies within HIT_ANGLE of one: 2·HIT_ANGLE of every π/Y step
             chance += list(np.minimum(1.0, holds.sum(1).numpy() * 2 * HIT_ANGLE / np.pi))
     return np.array(predicted), np.array(down), np.array(closing), np.array(hit), np.array(chance)
