@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint, load_model
+from kgn_bench.model.checkpoint import FORMAT, CheckpointError, checkpoint_format, load_checkpoint, load_model
 from kgn_bench.model.variants import get_variant
 
 
@@ -68,6 +68,24 @@ def test_truncated_and_foreign_files(tmp_path, small_model):
         load_checkpoint(tmp_path / "foreign.pt")
     with pytest.raises(CheckpointError, match="no checkpoint at"):
         load_checkpoint(tmp_path / "missing.pt")
+
+
+class _RunsCode:
+    """Pickled as a call of ``print``: a file that would run code when loaded without ``weights_only``."""
+
+    def __reduce__(self):
+        return (print, ("this ran on load",))
+
+
+def test_checkpoint_format_reads_data_only(tmp_path, small_model, capsys):
+    small_model(tmp_path / "w.pt")
+    assert checkpoint_format(tmp_path / "w.pt") == FORMAT
+    torch.save({"format": "kgn-bench-vgn", "weights": _RunsCode()}, tmp_path / "hostile.pt")
+    (tmp_path / "junk.pt").write_bytes(b"\x00junk")
+    torch.save([1, 2], tmp_path / "list.pt")
+    for name in ("hostile.pt", "junk.pt", "list.pt", "missing.pt"):
+        assert checkpoint_format(tmp_path / name) is None, name
+    assert "this ran on load" not in capsys.readouterr().out
 
 
 def test_weights_that_do_not_fit_the_network(tmp_path, small_model):

@@ -13,6 +13,7 @@ from kgn_bench.viz.figures import (
     save_figure,
     save_training_curves,
     training_figure,
+    vgn_training_figure,
 )
 
 
@@ -74,3 +75,31 @@ def test_training_curves_of_shipped_weights(tmp_path, small_model):
     small_model(tmp_path / "bare.pt", epoch=0, history=[])
     bare, _ = export_weights(tmp_path / "bare.pt", "bare", tmp_path / "w")
     assert save_training_curves(bare) is None and not (tmp_path / "w" / "bare_training.png").exists()
+
+
+def test_vgn_training_figure_plots_losses_and_held_out_rates():
+    history = [{"epoch": e, "loss": 1.0 / e, "bce": 0.6 / e, "rotation": 0.3 / e, "width": 0.1 / e,
+                "held_out_loss": 1.2 / e, "accuracy": 0.5 + 0.1 * e, "precision": 0.4, "recall": None,
+                "rotation_hit": 0.2} for e in range(1, 4)]
+    fig = vgn_training_figure(history, "vgn: 300 scenes")
+    left, right = fig.axes
+    assert [line.get_label() for line in left.lines] == ["loss", "bce", "rotation", "width", "held-out loss"]
+    assert [line.get_label() for line in right.lines] == ["accuracy", "precision", "rotation hit"]
+    assert list(right.lines[0].get_ydata()) == pytest.approx([60.0, 70.0, 80.0])
+
+
+def test_training_curves_of_shipped_vgn_weights(tmp_path):
+    """``kgn-bench ship`` on a VGN run: the PNG beside the weights is ``vgn_training_figure`` of their history,
+    titled with the weights' name and the number of scenes, and the card links it."""
+    from kgn_bench.model.vgn_checkpoint import export_vgn_weights, save_vgn_checkpoint, vgn_payload
+    from kgn_bench.model.vgn_network import VGNNet
+    from kgn_bench.tsdf import VoxelGrid
+
+    history = [{"epoch": 1, "loss": 0.9, "held_out_loss": 0.8, "accuracy": 0.6, "precision": 0.5, "recall": 0.7}]
+    save_vgn_checkpoint(tmp_path / "final.pt", {**vgn_payload(VGNNet(), VoxelGrid(0.3, 40, 4.0)), "epoch": 1,
+                                                 "history": history, "dataset": {"scenes": 300}})
+    weights, card = export_vgn_weights(tmp_path / "final.pt", "vgn", tmp_path / "w")
+    png = save_training_curves(weights)
+    assert png == tmp_path / "w" / "vgn_training.png" and "![training curves](vgn_training.png)" in card.read_text()
+    save_figure(vgn_training_figure(history, "vgn: 300 scenes"), tmp_path / "expected.png")
+    assert png.read_bytes() == (tmp_path / "expected.png").read_bytes()

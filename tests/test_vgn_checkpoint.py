@@ -90,3 +90,11 @@ def test_a_card_states_the_datas_generation_cost():
     assert "| data generation | 2.5 core-hours" in card and "303 object types" in card
     assert "physics-floating-panda-v3" in card
     assert "data generation" not in vgn_model_card({"history": []}, "x", 1000)
+
+
+def test_a_card_states_the_rotation_hit_rate_where_measured():
+    row = {"epoch": 2, "loss": 0.5, "held_out_loss": 0.6, "accuracy": 0.8, "precision": 0.7, "recall": 0.6}
+    assert "rotation within 15°" not in vgn_model_card({"history": [row]}, "x", 1000)
+    card = vgn_model_card({"history": [{**row, "rotation_hit": 0.412}]}, "x", 1000)
+    assert "recall 60.0 %, rotation within 15° of a holding one 41.2 % |" in card
+    assert "![training curves](x_training.png)" in card

@@ -74,22 +74,15 @@ def _add_ship(sub) -> None:
 
 
 def _cmd_ship(args) -> int:
-    import torch
-
-    from kgn_bench.model.checkpoint import export_weights
+    from kgn_bench.model.checkpoint import checkpoint_format, export_weights
     from kgn_bench.model.vgn_checkpoint import VGN_FORMAT, export_vgn_weights
     from kgn_bench.viz.figures import save_training_curves
 
     writable(args.out, "weights folder")
-    try:
-        kind = torch.load(args.checkpoint, map_location="cpu", weights_only=False).get("format")
-    except Exception:  # unreadable or not a dict: export_weights names the problem
-        kind = None
-    if kind == VGN_FORMAT:
+    if checkpoint_format(args.checkpoint) == VGN_FORMAT:  # anything else: export_weights names the problem
         weights, card = export_vgn_weights(args.checkpoint, args.name, args.out)
-        print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
-        return 0
-    weights, card = export_weights(args.checkpoint, args.name, args.out)
+    else:
+        weights, card = export_weights(args.checkpoint, args.name, args.out)
     save_training_curves(weights)
     print(f"wrote {weights} ({weights.stat().st_size / 1e6:.1f} MB) and {card}")
     return 0

@@ -36,6 +36,7 @@ __all__ = [
     "VERSION",
     "CheckpointError",
     "LoadedModel",
+    "checkpoint_format",
     "dataset_identity",
     "export_weights",
     "git_commit",
@@ -116,6 +117,17 @@ def verify_weights(path: Path) -> None:
     if expected is not None and file_sha256(path) != expected:
         raise CheckpointError(f"{path}: SHA-256 differs from its model card {Path(path).with_suffix('.md').name} "
                               "(damaged or replaced file; restore it, or re-export it to write a new card)")
+
+
+def checkpoint_format(path: Path) -> str | None:
+    """The ``format`` entry of the checkpoint dict at ``path`` (``FORMAT`` for KGN's, VGN's own for VGN's), or
+    None for a file that is not a readable checkpoint dict. Loaded with ``weights_only=True``: a checkpoint is
+    data, and a file that would run code on loading is not readable here."""
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # torch raises many types for a damaged or hostile file
+        return None
+    return data.get("format") if isinstance(data, dict) else None
 
 
 def read_checkpoint(path: Path, fmt: str, version: int, required: tuple[str, ...], what: str = "checkpoint",

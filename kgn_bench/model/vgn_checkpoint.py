@@ -135,10 +135,15 @@ def vgn_model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str
     if last:
         lines.append(f"| final loss (epoch {last.get('epoch')}) | train {_num(last.get('loss'))}, "
                      f"held-out {_num(last.get('held_out_loss'))} |")
+        hit = (f", rotation within 15° of a holding one {_pct(last['rotation_hit'])}"
+               if last.get("rotation_hit") is not None else "")
         lines.append(f"| held-out (epoch {last.get('epoch')}) | accuracy {_pct(last.get('accuracy'))}, precision "
-                     f"{_pct(last.get('precision'))}, recall {_pct(last.get('recall'))} |")
-    lines += ["", "Training curve (epoch: train loss / held-out accuracy): "
-              + ", ".join(f"{h.get('epoch')}: {_num(h.get('loss'), 3)} / {_pct(h.get('accuracy'))}" for h in history)]
+                     f"{_pct(last.get('precision'))}, recall {_pct(last.get('recall'))}{hit} |")
+    if history:
+        lines += ["", "Training curve (epoch: train loss / held-out accuracy): "
+                  + ", ".join(f"{h.get('epoch')}: {_num(h.get('loss'), 3)} / {_pct(h.get('accuracy'))}"
+                              for h in history),
+                  "", f"![training curves]({name}_training.png)"]
     return "\n".join(lines) + "\n"
 
 

@@ -20,7 +20,8 @@ from matplotlib.figure import Figure
 
 from kgn_bench.io import atomic_write
 
-__all__ = ["DPI", "Line", "Panel", "bar_chart", "line_panels", "save_figure", "save_training_curves", "training_figure"]
+__all__ = ["DPI", "Line", "Panel", "bar_chart", "line_panels", "save_figure", "save_training_curves", "training_figure",
+           "vgn_training_figure"]
 
 DPI = 150
 """Resolution of saved figures."""
@@ -148,17 +149,61 @@ def training_figure(history: Sequence[dict[str, Any]], title: str) -> Figure:
     return fig
 
 
+def vgn_training_figure(history: Sequence[dict[str, Any]], title: str) -> Figure:
+    """VGN's training curves from a run's ``history`` (``training.vgn_train``): the mean losses per labelled
+    voxel and epoch (log scale; the held-out loss dashed) on the left, the held-out accuracy, precision and
+    recall of ``quality ≥ 0.5`` and, where the data stores every yaw, the rotation hit rate on the right."""
+    fig = Figure(figsize=(9.0, 3.4), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    epochs = [h["epoch"] for h in history]
+
+    def series(key: str) -> list[float]:
+        return [np.nan if h.get(key) is None else float(h[key]) for h in history]
+
+    for i, key in enumerate(("loss", "bce", "rotation", "width")):
+        if any(h.get(key) is not None for h in history):
+            left.plot(epochs, series(key), color=_tab10(i), label=key, linewidth=1.2)
+    if any(h.get("held_out_loss") is not None for h in history):
+        left.plot(epochs, series("held_out_loss"), color=_tab10(0), linestyle="--", label="held-out loss",
+                  linewidth=1.2)
+    left.set_yscale("log")
+    left.set(xlabel="epoch", ylabel="mean loss per label", title="training loss")
+    left.grid(color="0.9", which="both")
+    left.legend(fontsize=6, ncols=2)
+    for i, key in enumerate(("accuracy", "precision", "recall", "rotation_hit")):
+        if any(h.get(key) is not None for h in history):
+            right.plot(epochs, [100 * y for y in series(key)], color=_tab10(i), marker="o", markersize=2.5,
+                       linewidth=1.2, label=key.replace("_", " "))
+    right.set(xlabel="epoch", ylabel="%", ylim=(0, 100), title="held-out scenes")
+    right.grid(color="0.9")
+    if right.lines:
+        right.legend(fontsize=6)
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
 def save_training_curves(weights: str | os.PathLike[str]) -> Path | None:
-    """Draw the training curves of shipped weights ``<dir>/<name>.pt`` (``model.checkpoint.export_weights``)
-    to ``<dir>/<name>_training.png``, the image their model card links, titled ``<name>: <training config>``;
-    returns its path, or None (nothing written) when the weights carry no history."""
-    from kgn_bench.model.checkpoint import load_checkpoint
+    """Draw the training curves of shipped weights ``<dir>/<name>.pt`` (``model.checkpoint.export_weights`` or
+    ``model.vgn_checkpoint.export_vgn_weights``) to ``<dir>/<name>_training.png``, the image their model card
+    links: ``training_figure`` for KGN's, titled ``<name>: <training config>``, ``vgn_training_figure`` for
+    VGN's, titled ``<name>: <scenes> scenes``; returns its path, or None (nothing written) when the weights
+    carry no history."""
+    from kgn_bench.model.checkpoint import checkpoint_format, load_checkpoint
+    from kgn_bench.model.vgn_checkpoint import VGN_FORMAT, load_vgn_checkpoint
 
     weights = Path(weights)
+    kind = checkpoint_format(weights)  # None: load_checkpoint names the problem
+    name = weights.stem
+    png = weights.parent / f"{name}_training.png"
+    if kind == VGN_FORMAT:
+        data = load_vgn_checkpoint(weights)
+        if not data.get("history"):
+            return None
+        scenes = data.get("dataset", {}).get("scenes", "?")
+        save_figure(vgn_training_figure(data["history"], f"{name}: {scenes} scenes"), png)
+        return png
     data = load_checkpoint(weights)
     if not data.get("history"):
         return None
-    name = weights.stem
-    png = weights.parent / f"{name}_training.png"
     save_figure(training_figure(data["history"], f"{name}: {data.get('train', {}).get('name', '')}"), png)
     return png
