@@ -31,12 +31,14 @@ test: setup
 	$(BIN)/ruff check kgn_bench tests docs/hooks results/architecture
 	$(BIN)/pytest -q
 
-# The regression checks that the test suite runs (tests/test_ci_regression.py), with their tables printed: the
-# fixed-seed clearance task and the fixed-seed pile task (raw mode), each with kgnv2 and the oracle, against
-# results/ci_baseline.json and results/ci_baseline_pile.json.
+# The regression checks that the test suite runs (tests/test_ci_regression.py), with their tables printed:
+# task:baseline:detectors for the fixed-seed clearance task, the fixed-seed pile task (raw mode) and 4 rounds of
+# GIGA's pile protocol, against results/<baseline>.json.
+CI_CHECKS = ci_regression:ci_baseline:kgnv2,oracle ci_pile:ci_baseline_pile:kgnv2,oracle \
+	ci_giga_pile:ci_baseline_giga_pile:kgnv2,oracle,vgn
 regression: setup
-	for t in ci_regression:ci_baseline ci_pile:ci_baseline_pile ci_giga_pile:ci_baseline_giga_pile; do for d in kgnv2 oracle; do \
-	  task=$${t%%:*}; base=$${t##*:}; rm -rf runs/$${task}_$$d; \
+	for t in $(CI_CHECKS); do task=$${t%%:*}; rest=$${t#*:}; base=$${rest%%:*}; \
+	  for d in $$(echo $${rest#*:} | tr , ' '); do rm -rf runs/$${task}_$$d; \
 	  $(BIN)/kgn-bench run tasks/$$task.toml --detector $$d --workers 2 --quiet --out runs/$${task}_$$d \
 	    > /dev/null && $(BIN)/kgn-bench check runs/$${task}_$$d --baseline results/$$base.json || exit 1; \
 	done; done
@@ -44,8 +46,8 @@ regression: setup
 # Write the CI baselines anew (after a change that is meant to change records): the same runs as `regression`,
 # each written as its detector's baseline (rates and the records' fingerprint).
 ci-baselines: setup
-	for t in ci_regression:ci_baseline ci_pile:ci_baseline_pile ci_giga_pile:ci_baseline_giga_pile; do for d in kgnv2 oracle; do \
-	  task=$${t%%:*}; base=$${t##*:}; rm -rf runs/$${task}_$$d; \
+	for t in $(CI_CHECKS); do task=$${t%%:*}; rest=$${t#*:}; base=$${rest%%:*}; \
+	  for d in $$(echo $${rest#*:} | tr , ' '); do rm -rf runs/$${task}_$$d; \
 	  $(BIN)/kgn-bench run tasks/$$task.toml --detector $$d --workers 2 --quiet --out runs/$${task}_$$d \
 	    > /dev/null && $(BIN)/kgn-bench check runs/$${task}_$$d --baseline results/$$base.json --update-baseline \
 	    || exit 1; \

@@ -9,7 +9,6 @@ from kgn_bench.config import ExecutionConfig
 from kgn_bench.detectors import DETECTORS, Candidates, Detector, DetectorError, Observation, make_detector
 from kgn_bench.detectors.oracle import PINCH_MARGIN, TILT_DEG, OracleDetector, pinched_extent, tilted
 from kgn_bench.detectors.random import RandomDetector
-from kgn_bench.detectors.vgn import vgn_weights_path
 from kgn_bench.geometry import make_pose, rot_z
 from kgn_bench.gripper import GRIPPER, PANDA_HAND, GripperBox, box_corners
 from kgn_bench.shapes.base import EVAL_DENSITY
@@ -115,8 +114,6 @@ def test_registry():
 
 @pytest.mark.parametrize("name", sorted(DETECTORS))
 def test_every_registered_detector_builds_from_what_ships(name):
-    if name == "vgn" and not vgn_weights_path().is_file():
-        pytest.skip("the vgn weights are not trained yet (assets/weights/vgn.pt)")
     detector = make_detector(name)
     assert isinstance(detector, Detector) and detector.name == name
 

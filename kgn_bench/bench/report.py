@@ -106,7 +106,7 @@ GIGA_NOTE = (
 CAMERA_LABELS = {"distance": ("distance", " m"), "elevation_deg": ("elevation", "°"), "azimuth_deg": ("azimuth", "°")}
 """How the viewpoint study names the camera settings it holds fixed: label and unit."""
 
-DETECTOR_ORDER = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth", "antipodal", "random", "oracle")
+DETECTOR_ORDER = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth", "vgn", "antipodal", "random", "oracle")
 
 PAPER: dict[str, dict[tuple[str, str], tuple[float, float, int]]] = {
     "kgnv2": {("single_household", "success"): (92.5, 6.7, 40),
