@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 
 from kgn_bench import giga
-from kgn_bench.bench.trial import camera_pose, check_cameras, run_trial
+from kgn_bench.bench.attempt import execute_floating
+from kgn_bench.bench.trial import camera_pose, capture, check_cameras, run_trial
 from kgn_bench.camera import INTRINSICS
 from kgn_bench.config import load_task
 from kgn_bench.detectors import make_detector
 from kgn_bench.sim.control import IK
+from kgn_bench.sim.floating_hand import FloatingHand
 
 TASKS = Path(__file__).resolve().parents[1] / "tasks"
 
@@ -81,3 +83,8 @@ def test_a_giga_round_runs_with_the_floating_hand(kind):
     for a in record.attempts[:-1]:  # no two failures in a row before the last attempt
         fails = 0 if a.success else fails + 1
         assert fails < 2
+    first = record.attempts[0]  # made again up to its selection, then executed by the capture's own hand
+    cap = capture(task, 0, make_detector("antipodal"), IK(), 1)
+    assert first.selected is not None and cap.selection.index == first.selected
+    assert isinstance(cap.hand, FloatingHand)
+    assert execute_floating(cap.hand, cap.selection).reason == first.reason

@@ -389,7 +389,9 @@ def _select(task: TaskConfig, ik: IK | None, cands: Candidates, obs: Observation
 class Capture:
     """Attempt ``attempt`` of a trial up to its selection, not executed (``capture``): the ``scene`` as that
     attempt found it, the ``observation`` of the task camera, the detector's ``candidates`` (camera frame),
-    the selector's ``selection`` (world frame) and the records of the attempts before it (``earlier``)."""
+    the selector's ``selection`` (world frame), the records of the attempts before it (``earlier``) and the
+    trial's ``hand`` (the arm's executor or the floating hand), parked, to execute the selection or another
+    grasp from this state."""
 
     attempt: int
     scene: Scene
@@ -397,6 +399,7 @@ class Capture:
     candidates: Candidates
     selection: Selection
     earlier: list[AttemptRecord] = field(default_factory=list)
+    hand: Hand | None = None
 
 
 def capture(task: TaskConfig, index: int, detector: Detector, ik: IK, attempt: int = 1) -> Capture | None:
@@ -411,7 +414,7 @@ def capture(task: TaskConfig, index: int, detector: Detector, ik: IK, attempt: i
     earlier, cap = _episode(task, index, scene, executor, detector, _Clock(), names,
                             _open_recording(None, task, index, scene, executor), until=attempt)
     if cap is not None:
-        cap.earlier = earlier
+        cap.earlier, cap.hand = earlier, executor
     return cap
 
 

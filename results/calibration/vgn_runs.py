@@ -35,6 +35,8 @@ s100 = _run("train_vgn_s100", "vgn_s100")
 """The first 100 scenes of ``data/vgn`` (VGN's target: the stored yaw)."""
 s300 = _run("train_vgn_s300", "vgn_s300")
 """The first 300 scenes."""
+s300_e90 = _run("train_vgn_s300_e90", "vgn_s300_e90")
+"""The first 300 scenes, 90 epochs (``s300`` resumed with ``vgn.epochs=90``): what a longer schedule buys."""
 s300_any = _run("train_vgn_s300_any", "vgn_s300_any")
 """The first 300 scenes, the rotation trained towards any yaw that held (``rotation_target = "any_holding"``)."""
 s1000 = _run("train_vgn", "vgn_s1000")
