@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from kgn_bench.model.vgn_network import VGNNet
+from kgn_bench.model.vgn_network import VGNNet, conv3d, fold_kernel, upsampled_conv
 
 
 def test_parameter_count_is_vgns():
@@ -68,3 +68,32 @@ def test_the_stacked_heads_compute_each_head_as_its_own_convolution():
     torch.testing.assert_close(out.quality, torch.sigmoid(net.quality(h)))
     torch.testing.assert_close(out.rotation, torch.nn.functional.normalize(net.rotation(h), dim=1))
     torch.testing.assert_close(out.width, net.width(h))
+
+
+@pytest.mark.parametrize("shape", [(2, 3, 4, 5, 6), (1, 16, 10, 10, 10)])
+def test_a_k5_convolution_of_an_upsampled_map_is_computed_on_the_coarse_map(shape):
+    """``upsampled_conv`` against the convolution of the ×2 nearest-upsampled map, borders included, on maps
+    that are not cubes and with a batch of two."""
+    torch.manual_seed(2)
+    x = torch.rand(*shape)
+    weight, bias = torch.randn(7, shape[1], 5, 5, 5), torch.randn(7)
+    fine = torch.nn.functional.interpolate(x, scale_factor=2, mode="nearest")
+    expected = torch.nn.functional.conv3d(fine, weight, bias, padding=2)
+    out = upsampled_conv(x, weight, bias)
+    assert out.shape == expected.shape and out.is_contiguous()
+    torch.testing.assert_close(out, expected, atol=1e-4, rtol=1e-5)
+    assert fold_kernel(weight).shape == (56, shape[1], 3, 3, 3)
+
+
+def test_the_cpu_convolution_has_pytorchs_values_and_gradients():
+    torch.manual_seed(3)
+    x = torch.rand(1, 4, 6, 6, 6, requires_grad=True)
+    w, b = torch.randn(5, 4, 3, 3, 3, requires_grad=True), torch.randn(5, requires_grad=True)
+    for stride in (1, 2):
+        ours = conv3d(x, w, b, stride=stride, padding=1)
+        grads = torch.autograd.grad(ours.square().sum(), (x, w, b))
+        ref = torch.nn.functional.conv3d(x, w, b, stride=stride, padding=1)
+        ref_grads = torch.autograd.grad(ref.square().sum(), (x, w, b))
+        torch.testing.assert_close(ours, ref, atol=1e-5, rtol=1e-5)
+        for g, r in zip(grads, ref_grads, strict=True):
+            torch.testing.assert_close(g, r, atol=1e-3, rtol=1e-4)
