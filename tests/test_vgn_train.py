@@ -295,6 +295,24 @@ def test_trains_resumes_and_refuses_another_dataset(tmp_path):
     assert load_vgn_model(weights).grid == GRID and "| sha256 |" in card.read_text()
 
 
+def test_a_run_on_a_prefix_resumes_after_the_dataset_grows(tmp_path):
+    """A run on the first 3 scenes is identified by those scenes: it resumes once a fifth scene is added and the
+    manifest written again, and refuses when one of its own scenes changed."""
+    data = tmp_path / "data"
+    small = _dataset(data, scenes=4)
+    cfg = VGNTrainConfig(data=str(data), epochs=1, batch_size=2, held_out=0.34, seed=1, max_scenes=3)
+    run = tmp_path / "run"
+    train_vgn(cfg, run, threads=1, device="cpu")
+    grown = _dataset(data, scenes=5)  # the same first four scenes, one more
+    assert grown.sha256 != small.sha256 and grown.prefix_sha256(3) == small.prefix_sha256(3)
+    assert small.prefix_sha256(0) == small.prefix_sha256(9) == small.sha256
+    train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "epochs": 2}), run, threads=1, device="cpu")
+    assert [r["epoch"] for r in _history(run)] == [1, 2]
+    _dataset(data, scenes=5, seed=9)  # other scenes under the same names
+    with pytest.raises(CheckpointError, match="another dataset"):
+        train_vgn(VGNTrainConfig(**{**cfg.to_dict(), "epochs": 3}), run, threads=1, device="cpu")
+
+
 def test_the_holding_set_target_trains_and_reports_hits(tmp_path):
     data = tmp_path / "data"
     _dataset(data, holds=True)

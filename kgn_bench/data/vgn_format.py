@@ -239,6 +239,14 @@ class VGNManifest:
     """The scenes' generation times summed (``meta["seconds"]``: arranging, viewing and labelling; CPU-core
     seconds, whatever ran in parallel); None when the generator did not record them."""
 
+    def prefix_sha256(self, n: int = 0) -> str:
+        """The identity of the first ``n`` scenes (0: all of them, the manifest's ``sha256``): the SHA-256 of
+        their file list, so a training run on a prefix still recognises it after the dataset has grown."""
+        if not n or n >= len(self.scenes):
+            return self.sha256
+        return _files_sha256([{"id": e.id, "grasps": e.grasps, "positives": e.positives, "sha256": e.sha256}
+                              for e in self.scenes[:n]])
+
     @property
     def grasps(self) -> int:
         return sum(s.grasps for s in self.scenes)

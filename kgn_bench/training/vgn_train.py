@@ -43,8 +43,10 @@ written atomically after every epoch), ``history.jsonl`` (one row per epoch: mea
 terms, held-out loss, accuracy, precision and recall of ``round(quality)`` against the labels at the
 held-out scenes' labelled voxels, seconds; rewritten whole every epoch) and ``final.pt`` (weights only) at the
 end. Calling ``train_vgn`` again resumes after the last completed epoch (raise ``epochs`` to train on); a
-checkpoint of another dataset (manifest SHA-256) or of other settings (anything but ``epochs``, ``workers`` and
-the dataset folder's path) is refused.
+checkpoint of another dataset or of other settings (anything but ``epochs``, ``workers`` and the dataset
+folder's path) is refused. The dataset is identified by the SHA-256 of the scenes the run uses
+(``VGNManifest.prefix_sha256``: with ``max_scenes``, the first ``max_scenes``), so a run on a prefix resumes
+after the dataset has grown.
 ``export_vgn`` writes the shipped weights and model card (``assets/weights/vgn.pt``, ``vgn.md``).
 
 A config is a TOML file with one section ``[vgn]`` whose keys are the fields of ``VGNTrainConfig``.
@@ -470,7 +472,8 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
                                 config.balance)
     held_set = VGNSceneDataset(manifest.folder, held_scenes, config.seed + 1, balance=config.balance)
     used = train_scenes + held_scenes
-    identity = {"path": str(config.data), "sha256": manifest.sha256, "scenes": len(used),
+    identity = {"path": str(config.data), "sha256": manifest.prefix_sha256(config.max_scenes),
+                "scenes": len(used),
                 "train_scenes": len(train_scenes), "held_out_scenes": len(held_scenes),
                 "grasps": sum(s.grasps for s in used), "positives": sum(s.positives for s in used),
                 "generation_seconds": manifest.generation_seconds,
@@ -482,7 +485,7 @@ def train_vgn(config: VGNTrainConfig, out: Path, threads: int | None = 1, device
     last = out / "last.pt"
     if last.exists():
         ckpt = load_vgn_checkpoint(last)
-        if ckpt.get("dataset", {}).get("sha256") != manifest.sha256:
+        if ckpt.get("dataset", {}).get("sha256") != identity["sha256"]:
             raise CheckpointError(f"{last} was trained on another dataset than {config.data} "
                                   "(use another run folder or delete it)")
         if _comparable(ckpt.get("train", {})) != _comparable(config.to_dict()):
