@@ -39,6 +39,8 @@ s300_e90 = _run("train_vgn_s300_e90", "vgn_s300_e90")
 """The first 300 scenes, 90 epochs (``s300`` resumed with ``vgn.epochs=90``): what a longer schedule buys."""
 s300_e150 = _run("train_vgn_s300_e150", "vgn_s300_e150")
 """The first 300 scenes, 150 epochs (``s300_e90`` resumed with ``vgn.epochs=150``)."""
+s600_e90 = _run("train_vgn_s600_e90", "vgn_s600_e90")
+"""The first 600 scenes, 90 epochs."""
 s300_any = _run("train_vgn_s300_any", "vgn_s300_any")
 """The first 300 scenes, the rotation trained towards any yaw that held (``rotation_target = "any_holding"``)."""
 s1000 = _run("train_vgn", "vgn_s1000")
