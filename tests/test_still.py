@@ -50,6 +50,7 @@ def test_the_executed_grasp_is_drawn_inside_the_image_in_cyan(pile_run):
     assert np.array_equal(still[30:], draw_still(obs, caption="x")[30:])
 
 
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # rerun's note on the deliberately broken file
 def test_cli_writes_a_png_and_names_a_missing_attempt_or_a_broken_file(pile_run, tmp_path, capsys):
     out = tmp_path / "still.png"
     assert main(["replay", str(pile_run), "--still", str(out), "--attempt", "2"]) == 0
