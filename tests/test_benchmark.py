@@ -18,6 +18,13 @@ def test_shipped_plan_loads_and_can_be_restricted():
     plan = load_plan(TASKS / "benchmark.toml")
     assert "kgnv2" in plan.detectors and "oracle" in plan.detectors
     assert [t.name for t in plan.tasks][:1] == ["single_object"]
+    # vgn (an 8 cm hand inside GIGA's cube) runs in GIGA's rounds only; every other detector everywhere
+    assert "vgn" in plan.detectors_of("giga_pile") and "vgn" in plan.detectors_of("giga_packed")
+    assert "vgn" not in plan.detectors_of("pile") and "antipodal" in plan.detectors_of("giga_pile")
+    # the main job's ten tasks (Makefile MAIN_TASKS) are the plan's tasks before GIGA's rounds
+    makefile = (TASKS.parent / "Makefile").read_text()
+    main_tasks = makefile.split("MAIN_TASKS =")[1].split("\nbenchmark:")[0].replace("\\", " ").split()
+    assert [t.replace("@", "_") for t in main_tasks] == [t.name for t in plan.tasks if not t.name.startswith("giga_")]
     only = load_plan(TASKS / "benchmark.toml", tasks=["multi_object"], detectors=["kgnv2"])
     assert [t.name for t in only.tasks] == ["multi_object"] and only.detectors == ("kgnv2",)
     # the viewpoint study: camera sweeps of single_object, kept only when that task is in the plan
