@@ -45,3 +45,6 @@ s300_any = _run("train_vgn_s300_any", "vgn_s300_any")
 """The first 300 scenes, the rotation trained towards any yaw that held (``rotation_target = "any_holding"``)."""
 s1000 = _run("train_vgn", "vgn_s1000")
 """All 1000 scenes: ``tasks/vgn_train.toml``'s run, the one ``kgn-bench ship`` makes ``vgn``."""
+s300_noaug_e90 = _run("train_vgn_s300_noaug_e90", "vgn_s300_noaug_e90")
+"""The first 300 scenes, 90 epochs, without the k·90° rotation augmentation (``augment = false``): GIGA's
+camera is one fixed side view in training and test, and GIGA's ``train_vgn.py`` augments only when asked."""
