@@ -1,11 +1,17 @@
 """VGN training runs of the calibration experiments as closed-loop detectors, before any of them is shipped.
 
-Each attribute is a detector factory for ``kgn-bench run --detector vgn_runs:NAME`` (``module:attribute``,
-docs/detectors.md): the ``vgn`` detector with GIGA's selection on the run's ``final.pt``, named ``vgn_NAME`` in
-the records, with the weights' SHA-256 as its fingerprint (so a run's identity changes with the weights)::
+Each name is a detector factory for ``kgn-bench run --detector vgn_runs:NAME`` (``module:attribute``,
+docs/detectors.md): the ``vgn`` detector with GIGA's selection on the run folder ``train_vgn_NAME``'s
+``final.pt``, named ``vgn_NAME`` in the records, with the weights' SHA-256 as its fingerprint (so a run's
+identity changes with the weights)::
 
-    PYTHONPATH=results/calibration kgn-bench run tasks/giga_pile.toml --detector vgn_runs:s300 \\
-        --out runs/vgn_runs/giga_pile/s300
+    PYTHONPATH=results/calibration kgn-bench run tasks/giga_pile.toml --detector vgn_runs:s600_e90 \\
+        --out runs/vgn_runs/giga_pile/s600_e90
+
+Names follow ``vgn_data_volume.sh``: ``s<N>`` the first N scenes of ``data/vgn``, ``_e<E>`` E epochs (without it,
+30: the runs made before the schedule grew), then a variant: ``_any`` the rotation trained towards any yaw that
+held (``rotation_target = "any_holding"``), ``_noaug`` without the k·90° rotation augmentation. The runs
+measured so far: ``s300`` (30 epochs), ``s300_e90``, ``s300_e150``, ``s600_e90`` (shipped as ``vgn``).
 
 ``VGN_RUNS`` (default ``runs``) is the folder that holds the ``train_vgn_*`` run folders.
 """
@@ -13,38 +19,28 @@ the records, with the weights' SHA-256 as its fingerprint (so a run's identity c
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 
 from kgn_bench.detectors.vgn import VGNDetector
 from kgn_bench.model.checkpoint import file_sha256
 
+NAME = re.compile(r"s\d+(_e\d+)?(_any|_noaug)?")
 
-def _run(folder: str, name: str) -> Callable[[], VGNDetector]:
+
+def _run(name: str) -> Callable[[], VGNDetector]:
     def make() -> VGNDetector:
-        weights = Path(os.environ.get("VGN_RUNS", "runs")) / folder / "final.pt"
+        weights = Path(os.environ.get("VGN_RUNS", "runs")) / f"train_vgn_{name}" / "final.pt"
         detector = VGNDetector(weights)
-        detector.name = name
+        detector.name = f"vgn_{name}"
         detector.fingerprint = file_sha256(weights)
         return detector
 
     return make
 
 
-s100 = _run("train_vgn_s100", "vgn_s100")
-"""The first 100 scenes of ``data/vgn`` (VGN's target: the stored yaw)."""
-s300 = _run("train_vgn_s300", "vgn_s300")
-"""The first 300 scenes."""
-s300_e90 = _run("train_vgn_s300_e90", "vgn_s300_e90")
-"""The first 300 scenes, 90 epochs (``s300`` resumed with ``vgn.epochs=90``): what a longer schedule buys."""
-s300_e150 = _run("train_vgn_s300_e150", "vgn_s300_e150")
-"""The first 300 scenes, 150 epochs (``s300_e90`` resumed with ``vgn.epochs=150``)."""
-s600_e90 = _run("train_vgn_s600_e90", "vgn_s600_e90")
-"""The first 600 scenes, 90 epochs."""
-s300_any = _run("train_vgn_s300_any", "vgn_s300_any")
-"""The first 300 scenes, the rotation trained towards any yaw that held (``rotation_target = "any_holding"``)."""
-s1000 = _run("train_vgn", "vgn_s1000")
-"""All 1000 scenes: ``tasks/vgn_train.toml``'s run, the one ``kgn-bench ship`` makes ``vgn``."""
-s300_noaug_e90 = _run("train_vgn_s300_noaug_e90", "vgn_s300_noaug_e90")
-"""The first 300 scenes, 90 epochs, without the k·90° rotation augmentation (``augment = false``): GIGA's
-camera is one fixed side view in training and test, and GIGA's ``train_vgn.py`` augments only when asked."""
+def __getattr__(name: str) -> Callable[[], VGNDetector]:
+    if NAME.fullmatch(name):
+        return _run(name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r} (run names: s<N>[_e<E>][_any|_noaug])")
