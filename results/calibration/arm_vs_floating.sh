@@ -8,7 +8,7 @@
 set -euo pipefail
 RUNS=${RUNS:-runs/arm_vs_floating}
 TASKS=${*:-giga_pile giga_packed}
-DETECTORS=${DETECTORS:-oracle antipodal kgnv2 random}
+DETECTORS=${DETECTORS:-oracle vgn antipodal kgnv2 random}
 for task in $TASKS; do
   for det in $DETECTORS; do
     K="kgn-bench run tasks/$task.toml --detector $det --workers 1 --quiet --set execution.gripper=default"
