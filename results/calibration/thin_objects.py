@@ -1,8 +1,8 @@
 """Detectors in GIGA's rounds on the thin test objects and on the others (issue 42: the packed DR gap).
 
-An object is *thin* when its smallest extent, once sized as GIGA sizes it (the mesh scaled so its second-largest
-extent is at most 7 cm, ``shapes.scaled.giga_sized``'s rule; the round's U(0.8, 1.0) or U(0.7, 0.9) factor left
-out), is under 3.5 cm: pybullet's procedural plates. For each detector of a benchmark's runs folder
+An object is *thin* when the smallest extent of its oriented bounding box, once sized as GIGA sizes it
+(``shapes.scaled.giga_sized`` with the round's U(0.8, 1.0) or U(0.7, 0.9) factor left out), is under 3.5 cm:
+pybullet's procedural plates and sticks. For each detector of a benchmark's runs folder
 (``RUNS/<task>/<detector>/seed<k>``) it prints the objects removed over the objects placed, for thin objects
 and for the others, and how many of the rounds that ended with no candidate had only thin objects left.
 
@@ -16,18 +16,15 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
-import trimesh
-
-from kgn_bench.shapes.library import list_objects
+from kgn_bench.shapes.library import load_object
+from kgn_bench.shapes.scaled import giga_sized, oriented_extents
 
 THIN_CM = 3.5
 
 
-def giga_extents_cm(name: str) -> np.ndarray:
-    """The object's extents (cm, largest first) after GIGA's sizing rule."""
-    ext = np.sort(trimesh.load(list_objects()[name] / "visual.ply").extents)[::-1]
-    return 100.0 * ext * min(1.0, 0.07 / ext[1])
+def smallest_extent_cm(name: str) -> float:
+    """The object's smallest oriented extent (cm) at GIGA's size, before the round's random factor."""
+    return 100.0 * float(oriented_extents(giga_sized(load_object(name), 1.0))[2])
 
 
 def _rate(count: Counter[str], kind: str) -> str:
@@ -50,7 +47,7 @@ def main() -> None:
                     rec = json.loads(line)
                     for name in rec["placed_objects"]:
                         if name not in thin:
-                            thin[name] = bool(giga_extents_cm(name)[2] < THIN_CM)
+                            thin[name] = smallest_extent_cm(name) < THIN_CM
                     # as the report counts: objects of a type put in the bin / placed (a round may draw a type twice)
                     placed = Counter(rec["placed_objects"])
                     removed = Counter(a["object"] for a in rec["attempts"] if a["success"])
@@ -60,7 +57,7 @@ def main() -> None:
                         count[f"{'thin' if thin[name] else 'other'}_removed"] += n
                     if rec["attempts"] and rec["attempts"][-1]["reason"] == "no_candidate":
                         count["no_candidate"] += 1
-                        left = [name for name in placed - removed]
+                        left = list(placed - removed)
                         count["only_thin_left"] += bool(left) and all(thin[name] for name in left)
             print(f"| {det.name} | {_rate(count, 'thin')} | {_rate(count, 'other')} | {count['no_candidate']} | "
                   f"{count['only_thin_left']} |")
