@@ -36,6 +36,17 @@ def test_weights_lookup():
     assert weights_path("kgn_depth") == WEIGHTS_DIR / "kgn.pt"
     assert weights_path("kgnv2") == WEIGHTS_DIR / "kgnv2.pt"
     assert weights_path("kgnv2", "mine") == WEIGHTS_DIR / "mine.pt"
+    assert weights_path("kgnv2_mesh") == WEIGHTS_DIR / "kgnv2_mesh.pt"  # another model of kgnv2: its own file
+
+
+def test_another_model_of_a_variant_decodes_as_it_under_its_own_name(tmp_path, small_model):
+    small_model(tmp_path / "mesh.pt")
+    small_model(tmp_path / "kgn.pt", variant="kgn")
+    det = KGNDetector("kgnv2_mesh", tmp_path / "mesh.pt")
+    assert det.name == "kgnv2_mesh" and det.variant.name == "kgnv2"
+    assert make_detector("kgnv2_mesh", tmp_path / "mesh.pt").name == "kgnv2_mesh"
+    with pytest.raises(CheckpointError, match="needs 'kgnv2' weights"):
+        KGNDetector("kgnv2_mesh", tmp_path / "kgn.pt")
 
 
 def test_forward_pass_gives_camera_frame_candidates(tmp_path, small_model):

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from kgn_bench.errors import InputError
+from kgn_bench.model.variants import MODELS
 
 from .antipodal import AntipodalDetector
 from .base import Candidates, Detector, DetectorError, Observation
@@ -39,8 +40,9 @@ def _vgn(weights=None) -> Detector:
     return VGNDetector(weights)
 
 
-LEARNED = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth")
-"""The KGN-family detectors backed by trained weights (one per model variant, ``detectors.kgn``)."""
+LEARNED = ("kgnv2", "kgnv2_sbranch", "kgn", "kgn_depth", *MODELS)
+"""The KGN-family detectors backed by trained weights (one per model variant, and the other trained models of
+``model.variants.MODELS``; ``detectors.kgn``)."""
 
 WEIGHTED = (*LEARNED, "vgn")
 """Every registered detector that loads trained weights (``make_detector`` passes ``weights`` on to them)."""

@@ -1,4 +1,4 @@
-"""The learned detectors ``kgnv2``, ``kgnv2_sbranch``, ``kgn`` and ``kgn_depth``: network → maps → decode.
+"""The learned detectors ``kgnv2``, ``kgnv2_sbranch``, ``kgn``, ``kgn_depth``, ``kgnv2_mesh``: network, maps, decode.
 
 ``detect``: validate the observation, ``model.preprocess.prepare`` (full frame resized by the model's
 ``input_scale``, standardised, padded), one forward pass, sigmoid on the heatmap logits, then
@@ -6,7 +6,9 @@
 observed depth for ``kgn_depth`` and for depth-anchored scale heads. Candidates are in the camera frame.
 
 Weights: a name looks up ``assets/weights/<name>.pt`` (``kgn_depth`` uses ``kgn``'s, ``kgnv2_sbranch`` the
-single-split ``kgnv2_sbranch_single``, ``SHIPPED_AS``); a path loads that file.
+single-split ``kgnv2_sbranch_single``, ``SHIPPED_AS``); a path loads that file. A detector of
+``model.variants.MODELS`` is another trained model of a variant, decoded as that variant, with its own
+weights and name.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import torch
 from kgn_bench.model.checkpoint import LoadedModel, load_model
 from kgn_bench.model.decode import DecodeConfig, decode
 from kgn_bench.model.preprocess import prepare
-from kgn_bench.model.variants import get_variant
+from kgn_bench.model.variants import MODELS, get_variant
 from kgn_bench.resources import weights_dir
 
 from .base import Candidates, DetectorError, Observation
@@ -37,13 +39,15 @@ trained on the single-object split only."""
 
 
 def weights_path(variant_name: str | None, weights: str | Path | None = None) -> Path:
-    """The weights file for ``variant_name``: ``weights`` if it is a path to a file, else the shipped
-    ``<weights>.pt``, else the shipped weights of the variant's training variant (``kgnv2`` when neither
-    is given)."""
+    """The weights file for ``variant_name`` (a variant or a name of ``MODELS``): ``weights`` if it is a
+    path to a file, else the shipped ``<weights>.pt``, else the model's own shipped weights, else those of
+    the variant's training variant (``kgnv2`` when neither is given)."""
     if weights is not None and (Path(weights).suffix == ".pt" or Path(weights).is_file()):
         return Path(weights)
     if weights is not None:
         return WEIGHTS_DIR / f"{weights}.pt"
+    if variant_name in MODELS:
+        return WEIGHTS_DIR / f"{variant_name}.pt"
     name = get_variant(variant_name or "kgnv2").weights_variant
     return WEIGHTS_DIR / f"{SHIPPED_AS.get(name, name)}.pt"
 
@@ -57,14 +61,15 @@ class KGNDetector:
     def __init__(self, variant: str | None = "kgnv2", weights: str | Path | None = None,
                  model: LoadedModel | None = None, decode_config: DecodeConfig | None = None,
                  threads: int | None = None) -> None:
-        """``variant`` None decodes as the variant the weights were trained as; an explicit one must be
-        servable by them (``kgn_depth`` decodes ``kgn`` weights), else ``CheckpointError``."""
-        wanted = get_variant(variant) if variant is not None else None
+        """``variant`` None decodes as the variant the weights were trained as; an explicit one (or a name of
+        ``MODELS``) must be servable by them (``kgn_depth`` decodes ``kgn`` weights), else
+        ``CheckpointError``."""
+        wanted = get_variant(MODELS.get(variant, variant)) if variant is not None else None
         if model is None:
             model = load_model(weights_path(variant, weights), wanted)
         self.model = model
         self.variant = wanted.with_scale_anchor(model.variant.scale_anchor) if wanted else model.variant
-        self.name = self.variant.name
+        self.name = variant if variant in MODELS else self.variant.name
         if self.model.variant.weights_variant != self.variant.weights_variant:
             raise DetectorError(f"model of variant {self.model.variant.name!r} cannot decode as {self.name!r}")
         self.decode_config = decode_config or DecodeConfig()

@@ -19,6 +19,8 @@ A variant fixes three choices:
 | kgnv2           | yes        | scale_normalized | scale       |
 
 ``kgn_depth`` uses the weights of ``kgn`` (it differs only at decoding): ``training_variant`` names it.
+``MODELS`` names detectors that are other trained models of a variant (``kgnv2_mesh``: ``kgnv2`` trained on
+meshes too).
 
 A fourth choice belongs to a trained model, not to the variant's name: ``scale_anchor``, how the scale head
 is parameterised (``kgn_bench.model.depth_anchor``). ``none`` (the paper) regresses ŝ = ‖t_cam‖ directly;
@@ -36,7 +38,7 @@ import numpy as np
 
 from kgn_bench.errors import InputError
 
-__all__ = ["BOX_SIDE", "VARIANTS", "Variant", "get_variant"]
+__all__ = ["BOX_SIDE", "MODELS", "VARIANTS", "Variant", "get_variant"]
 
 BOX_SIDE = 0.1
 """w_ref: side of the fixed keypoint box in metres (KGN's canonical 0.1 m)."""
@@ -104,6 +106,14 @@ VARIANTS: dict[str, Variant] = {
         Variant("kgnv2", scale_branch=True, box="scale_normalized", translation="scale"),
     )
 }
+
+
+MODELS: dict[str, str] = {"kgnv2_mesh": "kgnv2"}
+"""Detectors that are another trained model of a variant (detector name → variant): decoded as the variant,
+with the weights ``<name>.pt`` (``detectors.kgn.weights_path``). ``kgnv2_mesh`` is KGNv2 trained on scenes
+that mix the primitives with meshes of pybullet's train split, in random textures, through the benchmark
+camera's depth noise (``tasks/train_kgnv2_mesh.toml``); ``kgnv2`` stays the paper's model, trained on the
+primitives only."""
 
 
 def get_variant(name: str) -> Variant:

@@ -1,0 +1,108 @@
+"""The tables of results/mesh_detector/README.md from what ``measure.sh`` wrote (issue 44): the real-object
+columns, the label-free physics check, Table I on the PS test splits, the failures by cause and the dog bones.
+Prints Markdown; a missing measurement is a dash.
+
+    python results/mesh_detector/summary.py [RUNS]       # default runs
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+DETECTORS = ("kgnv2", "kgnv2_mesh", "antipodal")
+COLUMNS = (("single_real", "success", "single"), ("single_real_raw", "success", "single, raw"),
+           ("multi_real", "success", "clearance success"), ("multi_real", "clear", "clearance clear"),
+           ("multi_real_raw", "success", "clearance success, raw"), ("multi_real_raw", "clear", "clearance clear, raw"),
+           ("pile_real", "success", "pile GSR, raw"), ("pile_real", "clear", "pile DR, raw"),
+           ("pile_real_assisted", "success", "pile GSR"), ("pile_real_assisted", "clear", "pile DR"),
+           ("packed_real", "success", "packed GSR, raw"), ("packed_real", "clear", "packed DR, raw"),
+           ("packed_real_assisted", "success", "packed GSR"), ("packed_real_assisted", "clear", "packed DR"))
+CAUSES = ("no_grasp", "rotation", "scale", "centre", "position", "width", "moved_by_selector", "execution", "fault")
+
+
+def _load(path: Path) -> dict | None:
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def _rate(cell: dict | None) -> str:
+    if not cell or not cell.get("n"):
+        return "—"
+    return f"{100 * cell['rate']:.1f} [{100 * cell['low']:.1f}, {100 * cell['high']:.1f}] ({cell['k']}/{cell['n']})"
+
+
+def real_table(report: dict | None) -> str:
+    """Rows: detectors; columns: the real-object tasks of ``tasks/benchmark_real.toml``, Wilson intervals."""
+    cells: dict[tuple[str, str, str], dict] = {}
+    if report:
+        for col in report["columns"]:
+            for det, row in report["detectors"].items():
+                if col["label"] in row:
+                    cells[(det, col["task"], col["rate"])] = row[col["label"]]
+    lines = []
+    for part in (COLUMNS[:6], COLUMNS[6:]):
+        lines += ["| detector | " + " | ".join(c[2] for c in part) + " |", "|---" * (len(part) + 1) + "|"]
+        for det in DETECTORS:
+            lines.append(f"| `{det}` | " + " | ".join(_rate(cells.get((det, t, r))) for t, r, _ in part) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def physics_table(out: Path) -> str:
+    lines = ["| model | scenes | predictions checked | held in physics | within 1 cm / 20° of a label |",
+             "|---|---|---:|---:|---:|"]
+    for det in ("kgnv2", "kgnv2_mesh"):
+        for data, label in (("real_multi", "real objects"), ("ps_multi", "primitives")):
+            p = _load(out / "physics" / f"{det}_{data}" / "physics.json")
+            if p:
+                a = p["all"]
+                lines.append(f"| `{det}` | {label} | {a['checked']} | {100 * a['held'] / a['checked']:.1f} % "
+                             f"({a['held']}) | {100 * a['labelled'] / a['checked']:.1f} % |")
+    return "\n".join(lines)
+
+
+def vision_table(out: Path) -> str:
+    lines = ["| model | test split | 1 cm / 20° | 2 cm / 30° | 3 cm / 45° |", "|---|---|---:|---:|---:|"]
+    for det in ("kgnv2", "kgnv2_mesh"):
+        for data in ("ps_multi", "ps_single"):
+            v = _load(out / "vision" / f"{det}_{data}" / "vision.json")
+            if v:
+                cells = [f"{100 * t['gsr']:.1f} / {100 * t['gcr']:.1f} / {100 * t['osr']:.1f}" for t in v["thresholds"]]
+                lines.append(f"| `{det}` | {data} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def failures_table(out: Path) -> str:
+    lines = ["| detector | failed / attempts | " + " | ".join(CAUSES) + " |", "|---" * (len(CAUSES) + 2) + "|"]
+    for det in DETECTORS:
+        f = _load(out / "failures" / det / "failures.json")
+        if f:
+            failed = sum(f["counts"].values())
+            lines.append(f"| `{det}` | {failed} / {f['attempts']} | "
+                         + " | ".join(str(f["counts"].get(c, 0)) for c in CAUSES) + " |")
+    return "\n".join(lines)
+
+
+def dog_table(runs: Path) -> str:
+    lines = ["| detector | success | failures | per object (k / n) |", "|---|---|---|---|"]
+    for det in (*DETECTORS, "oracle"):
+        s = _load(runs / "dog" / det / "summary.json")
+        if s:
+            fails = ", ".join(f"{k} {v}" for k, v in s["failures"].items() if v)
+            per = ", ".join(f"{o} {c['k']}/{c['n']}" for o, c in sorted(s["per_object"].items()))
+            lines.append(f"| `{det}` | {_rate(s['rates']['success'])} | {fails or '—'} | {per} |")
+    return "\n".join(lines)
+
+
+def main(runs: Path) -> None:
+    out = runs / "mesh_detector"
+    print("## Real objects\n\n" + real_table(_load(out / "real_report" / "benchmark.json")))
+    print("## The label-free physics check\n\n" + physics_table(out) + "\n")
+    print("## Table I on the PS test splits (GSR / GCR / OSR %)\n\n" + vision_table(out) + "\n")
+    print("## Failed single-object attempts by cause\n\n" + failures_table(out) + "\n")
+    print("## Six meshes from a source in neither split (dm_control's dog bones)\n\n" + dog_table(runs))
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("runs"))
