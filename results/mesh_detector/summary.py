@@ -11,6 +11,8 @@ import json
 import sys
 from pathlib import Path
 
+from kgn_bench.bench.stats import Rate
+
 DETECTORS = ("kgnv2", "kgnv2_mesh", "antipodal")
 COLUMNS = (("single_real", "success", "single"), ("single_real_raw", "success", "single, raw"),
            ("multi_real", "success", "clearance success"), ("multi_real", "clear", "clearance clear"),
@@ -27,9 +29,7 @@ def _load(path: Path) -> dict | None:
 
 
 def _rate(cell: dict | None) -> str:
-    if not cell or not cell.get("n"):
-        return "—"
-    return f"{100 * cell['rate']:.1f} [{100 * cell['low']:.1f}, {100 * cell['high']:.1f}] ({cell['k']}/{cell['n']})"
+    return str(Rate.from_dict(cell)) if cell and cell.get("n") else "—"
 
 
 def real_table(report: dict | None) -> str:
