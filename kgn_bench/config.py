@@ -275,8 +275,8 @@ def _is_number(v: Any) -> bool:
 
 def _coerce(where: str, key: str, value: Any, hint: Any) -> Any:
     """Check ``value`` against the type ``hint`` of a dataclass field: ``bool``, ``int``, ``float`` (ints
-    accepted), ``str``, and tuples of numbers from TOML lists (``tuple[float, float]`` fixed length,
-    ``tuple[int, ...]`` any length; elements typed like the hint's)."""
+    accepted), ``str``, and tuples of numbers or strings from TOML lists (``tuple[float, float]`` fixed
+    length, ``tuple[int, ...]`` any length; elements typed like the hint's)."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
         for arm in args:
@@ -290,12 +290,13 @@ def _coerce(where: str, key: str, value: Any, hint: Any) -> Any:
         element = args[0] if args else float
         n = None if variable else len(args)
         ok = isinstance(value, list) and (n is None or len(value) == n) and all(
+            isinstance(v, str) if element is str else
             isinstance(v, int) and not isinstance(v, bool) if element is int else _is_number(v) for v in value)
         if not ok:
-            kind = "integers" if element is int else "numbers"
+            kind = {int: "integers", str: "strings"}.get(element, "numbers")
             count = "a list of" if n is None else f"a list of {n}"
             raise ConfigError(f"{where}: {key} must be {count} {kind}, got {value!r}")
-        return tuple(int(v) if element is int else float(v) for v in value)
+        return tuple(v if element is str else int(v) if element is int else float(v) for v in value)
     if hint is bool:
         ok = isinstance(value, bool)
     elif hint is float:

@@ -109,6 +109,8 @@ def test_evaluator_runs_on_schedule_and_leaves_the_weights_alone(tmp_path, tiny_
     ("[train]\nprecision = 'fp8'\n", "unknown \\[train\\] precision 'fp8'"),
     ("[network]\noutput_stride = 8\n", "output_stride must be one of"),
     ("[train]\nheatmap_radius = 0\n", "heatmap_radius must be 1 to 4"),
+    ("[train]\nextra_data = [3]\n", "extra_data must be a list of strings"),
+    ("[train]\ninit = 3\n", "init must be str"),
 ])
 def test_bad_configs_give_one_line(tmp_path, text, message):
     p = tmp_path / "bad.toml"
@@ -239,3 +241,58 @@ def test_a_dataset_of_test_objects_is_never_trained_on(tmp_path, tiny_dataset):
     with pytest.raises(DatasetError, match=r"real test objects \(pb_000\)"):
         train(load_train_config(_config(tmp_path, leaky)), progress=False)
     assert not (tmp_path / "run" / "last.pt").exists()
+
+
+def test_a_fine_tune_starts_from_init_and_its_card_says_so(tmp_path, tiny_dataset):
+    """``[train] init`` loads the checkpoint's weights before the first step (an epoch at a tiny rate leaves
+    them unchanged, where another seed's random weights would differ wholesale); the checkpoint and the model
+    card name it; a checkpoint of another variant is refused before anything is written."""
+    from kgn_bench.model.checkpoint import export_weights
+
+    root, _ = tiny_dataset
+    base = train(load_train_config(_config(tmp_path, root)), progress=False)
+    p = tmp_path / "fine.toml"
+    text = TINY.format(variant="kgnv2", data=root, out=tmp_path / "fine", epochs=1)
+    p.write_text(text.replace("lr = 1e-3", f'lr = 1e-9\ninit = "{base}"\nseed = 5'))
+    fine = train(load_train_config(p), progress=False)
+    a, b = load_checkpoint(base)["model"], load_checkpoint(fine)["model"]
+    weights = [k for k in a if a[k].is_floating_point() and "running_" not in k]  # batch-norm statistics move
+    assert max((a[k] - b[k]).abs().max().item() for k in weights) < 1e-6
+    init = load_checkpoint(fine)["init"]
+    assert init["path"] == str(base) and init["epochs"] == 1 and len(init["sha256"]) == 64
+    _, card = export_weights(fine, "fine", tmp_path / "shipped")
+    assert f"| initialised from | `{base}`" in card.read_text()
+    # kgnv2 weights cannot start a kgn run, and the refusal comes before the run folder exists
+    q = tmp_path / "wrong.toml"
+    q.write_text(TINY.format(variant="kgn", data=root, out=tmp_path / "wrong", epochs=1)
+                 .replace("lr = 1e-3", f'lr = 1e-3\ninit = "{base}"'))
+    with pytest.raises(CheckpointError, match="holds 'kgnv2' weights"):
+        train(load_train_config(q), progress=False)
+    assert not (tmp_path / "wrong" / "last.pt").exists()
+
+
+def test_extra_data_joins_the_training_split_and_the_identity(tmp_path, tiny_dataset):
+    """``[train] extra_data``: the training views of both datasets make one epoch (twice the batches of one
+    dataset), the checkpoint keeps both identities, and a resume with another extra dataset is refused."""
+    import shutil
+
+    root, _ = tiny_dataset
+    other = tmp_path / "other"
+    shutil.copytree(root, other)
+    manifest = json.loads((other / "dataset.json").read_text())
+    manifest["note"] = "a copy"
+    (other / "dataset.json").write_text(json.dumps(manifest))
+    p = tmp_path / "mix.toml"
+    p.write_text(TINY.format(variant="kgnv2", data=root, out=tmp_path / "run", epochs=1)
+                 .replace("lr = 1e-3", f'lr = 1e-3\nextra_data = ["{other}"]'))
+    cfg = load_train_config(p)
+    from kgn_bench.training.train import _start_run
+
+    (tmp_path / "x").mkdir()
+    single = _start_run(load_train_config(_config(tmp_path / "x", root)), None, None)
+    mixed = _start_run(cfg, None, None)
+    assert len(mixed.dataset) == 2 * len(single.dataset)
+    train(cfg, progress=False)
+    ckpt = load_checkpoint(tmp_path / "run" / "last.pt")
+    assert [e["path"] for e in ckpt["dataset"]["extra"]] == [str(other)]
+    assert ckpt["dataset"]["sha256"] != single.identity["sha256"]

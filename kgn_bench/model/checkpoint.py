@@ -4,7 +4,9 @@ A checkpoint is a ``torch.save`` dict:
 
 ``format`` ("kgn-bench-checkpoint"), ``version``, ``variant`` (the training variant's name),
 ``network`` and ``input`` (the ``NetworkConfig`` / ``InputConfig`` fields), ``model`` (state dict),
-``train`` (the training config as a dict), ``dataset`` (the dataset manifest and its SHA-256),
+``train`` (the training config as a dict), ``dataset`` (the dataset manifest and its SHA-256; with
+``extra`` datasets, theirs too and a SHA-256 over all), ``init`` (only in a fine-tuned run: the identity of
+the checkpoint it started from),
 ``git_commit``, ``epoch`` (completed epochs), ``history`` (per-epoch losses and metrics), and, in
 training checkpoints only, ``optimizer`` and ``scheduler`` states (stripped from shipped weights).
 
@@ -236,6 +238,7 @@ def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | N
     seconds = sum(h.get("seconds", 0.0) for h in history)
     ds = data.get("dataset", {})
     manifest = ds.get("manifest", {})
+    init = data.get("init") or {}
     lines = [
         f"# {name}",
         "",
@@ -248,10 +251,18 @@ def model_card(data: dict[str, Any], name: str, size_bytes: int, sha256: str | N
         f"| data | `{ds.get('path', '?')}`: {manifest.get('mode', '?')}-object PS, "
         f"{manifest.get('scenes', '?')} scenes × {manifest.get('views', '?')} views, seed {manifest.get('seed', '?')} "
         f"(sha256 {str(ds.get('sha256', ''))[:12]}) |",
+        *[f"| more data | `{x.get('path', '?')}`: {x.get('manifest', {}).get('mode', '?')}-object PS, "
+          f"{x.get('manifest', {}).get('scenes', '?')} scenes × {x.get('manifest', {}).get('views', '?')} views "
+          f"(sha256 {str(x.get('sha256', ''))[:12]}) |" for x in ds.get("extra", [])],
+        *([f"| initialised from | `{init.get('path', '?')}` (sha256 {str(init.get('sha256', ''))[:12]}): "
+           f"{init.get('epochs', '?')} epochs on `{init.get('data', '?')}`, {init.get('seconds', 0) / 60:.0f} min |"]
+          if init else []),
         f"| epochs | {data.get('epoch', '?')} (batch {train.get('batch_size', '?')}, Adam lr {train.get('lr', '?')}, "
         f"×{train.get('lr_gamma', '?')} after epochs {train.get('lr_steps', '?')}) |",
         f"| training views | {train.get('limit') or 'all of the train split'} |",
-        f"| wall time | {seconds / 60:.0f} min |",
+        f"| wall time | {seconds / 60:.0f} min"
+        + (f" ({(seconds + init.get('seconds', 0)) / 60:.0f} min with the initial weights' training)" if init else "")
+        + " |",
         f"| machine | {data.get('machine', '?')}, {data.get('precision', 'float32')} forward pass |",
         f"| git commit | `{data.get('git_commit', '?')}` |",
         f"| config | `{data.get('train', {}).get('name', '?')}` |",

@@ -8,7 +8,10 @@ A training config (``tasks/train_<variant>_<data>.toml``) has the sections
   (epochs between held-out evaluations; 0 = only at the end), ``eval_views`` (test views evaluated),
   ``scale_anchor`` (``none`` or ``depth``: how the scale head is parameterised, ``model.depth_anchor``) and
   ``assignment`` (``first`` or ``frontal``: which grasp a shared (cell, bin) target takes,
-  ``model.targets``) and ``precision`` (``auto``, ``float32`` or ``bfloat16``: see ``autocast_dtype``);
+  ``model.targets``), ``precision`` (``auto``, ``float32`` or ``bfloat16``: see ``autocast_dtype``),
+  ``extra_data`` (further dataset folders whose training splits join ``data``'s; the held-out evaluation
+  stays on ``data``'s test split) and ``init`` (a checkpoint to start from instead of the seed's random
+  weights: fine-tuning; same variant, scale anchor and network);
 * ``[network]`` (``NetworkConfig``), ``[input]`` (``InputConfig``), ``[augment]`` (``AugmentConfig``),
   ``[loss]`` (``LossWeights``); omitted keys take the defaults.
 
@@ -25,6 +28,7 @@ imports neither the detectors nor the evaluation code. ``kgn-bench train`` passe
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import platform
@@ -35,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from torch.utils.data import DataLoader
+from torch.utils.data import ConcatDataset, DataLoader
 
 from kgn_bench.config import override_tables, parse_section, read_toml, resolve_task
 from kgn_bench.data.format import DatasetError
@@ -98,6 +102,13 @@ class TrainSettings:
     """Which grasp a (cell, bin) target takes: ``first`` (the reference) or ``frontal`` (``model.targets``)."""
     precision: str = "auto"
     """The forward pass's arithmetic (``autocast_dtype``): ``auto``, ``float32`` or ``bfloat16``."""
+    extra_data: tuple[str, ...] = ()
+    """Further dataset folders: their training splits are appended to ``data``'s (each view once an epoch,
+    each dataset augmented with its own seed); the held-out evaluation stays on ``data``'s test split."""
+    init: str = ""
+    """A checkpoint whose weights the run starts from instead of the seed's random initialisation
+    (fine-tuning). It must hold the same variant, scale anchor and ``[network]``; its identity (path,
+    SHA-256, epochs, wall time, data) goes into the run's checkpoints and model card. Empty: no init."""
     heatmap_radius: int = 1
     """The heatmap target's Gaussian, (2r+1)² output cells (``model.targets.render_heatmap``): 1 is the
     reference's 3×3; 2 at output stride 2 covers about the image area of 1 at stride 4."""
@@ -237,11 +248,12 @@ class _Run:
     variant: Variant
     device: torch.device
     loader_workers: int
-    dataset: GraspViewDataset
+    dataset: GraspViewDataset | _Mixture
     identity: dict[str, Any]
     net: KGNNet
     optim: torch.optim.Optimizer
     commit: str
+    init: dict[str, Any] | None = None
     start: int = 0
     history: list[dict[str, Any]] = field(default_factory=list)
 
@@ -259,6 +271,7 @@ class _Run:
             "parameters": count_parameters(net),
             "machine": machine_label(self.device),
             "precision": str(autocast_dtype(self.device, cfg.train.precision) or torch.float32).removeprefix("torch."),
+            **({"init": self.init} if self.init else {}),
         }
         if with_optimizer:
             p["optimizer"] = self.optim.state_dict()
@@ -281,19 +294,67 @@ def _start_run(cfg: TrainConfig, device: str | None, threads: int | None) -> _Ru
     loader_workers = max(t_cfg.workers, min(8, available_cores() - 1)) if cuda else t_cfg.workers
     torch.manual_seed(t_cfg.seed)
 
-    dataset = GraspViewDataset(data, "train", variant, cfg.input, cfg.augment, seed=t_cfg.seed,
-                               limit=t_cfg.limit or None, assignment=t_cfg.assignment,
-                               stride=cfg.network.output_stride, heatmap_radius=t_cfg.heatmap_radius)
+    roots = [data, *(Path(d) for d in t_cfg.extra_data)]
+    parts = [GraspViewDataset(root, "train", variant, cfg.input, cfg.augment, seed=t_cfg.seed + 7919 * k,
+                              limit=t_cfg.limit or None, assignment=t_cfg.assignment,
+                              stride=cfg.network.output_stride, heatmap_radius=t_cfg.heatmap_radius)
+             for k, root in enumerate(roots)]
+    dataset = parts[0] if len(parts) == 1 else _Mixture(parts)
     if len(dataset) < t_cfg.batch_size:
         raise DatasetError(f"{data}: {len(dataset)} training views, fewer than one batch of {t_cfg.batch_size}")
-    identity = dataset_identity(data)
-    leaks = test_set_leaks(identity["manifest"].get("object_types", []))
-    if leaks:
-        raise DatasetError(f"{data}: its scenes hold real test objects ({', '.join(leaks[:5])}); never train on them")
+    identity = _data_identity(roots)
+    for root, ident in zip(roots, [identity, *identity.get("extra", [])]):
+        leaks = test_set_leaks(ident["manifest"].get("object_types", []))
+        if leaks:
+            raise DatasetError(f"{root}: its scenes hold real test objects ({', '.join(leaks[:5])}); "
+                               "never train on them")
     net = build_network(variant, cfg.network).to(dev).use_channels_last(t_cfg.channels_last)
+    init = _load_init(net, cfg, variant) if t_cfg.init else None
     optim = torch.optim.Adam(net.parameters(), lr=t_cfg.lr)
     commit = git_commit()  # the code that starts the run (kept across resumes)
-    return _Run(cfg, out, data, variant, dev, loader_workers, dataset, identity, net, optim, commit)
+    return _Run(cfg, out, data, variant, dev, loader_workers, dataset, identity, net, optim, commit, init)
+
+
+class _Mixture(ConcatDataset):
+    """The training splits of several datasets as one (``[train] extra_data``); ``set_epoch`` reaches each."""
+
+    def set_epoch(self, epoch: int) -> None:
+        for part in self.datasets:
+            part.set_epoch(epoch)
+
+
+def _data_identity(roots: list[Path]) -> dict[str, Any]:
+    """``dataset_identity`` of the first root; with more roots, theirs under ``extra`` and a ``sha256`` over
+    all of them in order (what a resume compares)."""
+    first = dataset_identity(roots[0])
+    if len(roots) == 1:
+        return first
+    extra = [dataset_identity(r) for r in roots[1:]]
+    combined = hashlib.sha256("".join(d["sha256"] for d in [first, *extra]).encode()).hexdigest()
+    return {**first, "sha256": combined, "extra": extra}
+
+
+def _load_init(net: KGNNet, cfg: TrainConfig, variant: Variant) -> dict[str, Any]:
+    """Load ``[train] init``'s weights into ``net`` (``CheckpointError`` if the checkpoint holds another
+    variant, scale anchor or network) and return its identity for the run's checkpoints: path, SHA-256 of
+    the file, its completed epochs, its wall time in seconds and its dataset's path and SHA-256."""
+    path = Path(cfg.train.init)
+    try:
+        ckpt = load_checkpoint(path)
+    except CheckpointError as e:
+        raise CheckpointError(f"[train] init: {e}") from None
+    if ckpt["variant"] != variant.name or ckpt.get("scale_anchor", "none") != variant.scale_anchor:
+        raise CheckpointError(f"{path}: [train] init holds {ckpt['variant']!r} weights (scale anchor "
+                              f"{ckpt.get('scale_anchor', 'none')!r}); this run trains {variant.name!r} "
+                              f"(scale anchor {variant.scale_anchor!r})")
+    if json.loads(json.dumps(ckpt["network"])) != cfg.to_dict()["network"]:
+        raise CheckpointError(f"{path}: [train] init was trained with another [network] than this config's")
+    net.load_state_dict(ckpt["model"])
+    history = ckpt.get("history", [])
+    ds = ckpt.get("dataset", {})
+    return {"path": str(path), "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+            "epochs": int(ckpt.get("epoch", 0)), "seconds": round(sum(h.get("seconds", 0.0) for h in history), 1),
+            "data": ds.get("path", "?"), "data_sha256": ds.get("sha256", "")}
 
 
 def _with_defaults(stored: Any) -> Any:
