@@ -62,3 +62,19 @@ for d in kgnv2 kgnv2_mesh antipodal oracle; do
   KGN_BENCH_OBJECTS=$LIB kgn-bench run "$OUT/single_dog.toml" --detector "$d" --workers "$WORKERS" --quiet \
     --out "$RUNS/dog/$d"
 done
+# 6. Where the 1 cm gap on the primitives comes from: the same 60 primitive scenes (seed 7, 300 views) rendered
+#    four ways (plain colours or random textures, clean depth or the camera's noise), both models scored on
+#    the 240 views of the training split (neither model saw these scenes).
+APP=$OUT/appearance
+for look in plain noise texonly tex; do
+  case $look in
+    plain) flags=() ;; noise) flags=(--depth-noise 1) ;; texonly) flags=(--appearance random) ;;
+    tex) flags=(--appearance random --depth-noise 1) ;;
+  esac
+  [ -f "$APP/$look/dataset.json" ] || kgn-bench data generate --mode multi --scenes 60 --views 5 --seed 7 \
+    "${flags[@]}" --out "$APP/$look" --quiet
+  for w in kgnv2 kgnv2_mesh; do
+    [ -f "$APP/eval/${w}_$look/vision.json" ] || kgn-bench eval vision --weights "$w" --data "$APP/$look" \
+      --split train --quiet --out "$APP/eval/${w}_$look"
+  done
+done

@@ -1,5 +1,6 @@
 """The tables of results/mesh_detector/README.md from what ``measure.sh`` wrote (issue 44): the real-object
-columns, the label-free physics check, Table I on the PS test splits, the failures by cause and the dog bones.
+columns, the label-free physics check, Table I on the PS test splits, the same primitive views in four looks, the
+failures by cause and the dog bones.
 Prints Markdown; a missing measurement is a dash.
 
     python results/mesh_detector/summary.py [RUNS]       # default runs
@@ -73,6 +74,27 @@ def vision_table(out: Path) -> str:
     return "\n".join(lines)
 
 
+LOOKS = (("plain", "plain colours, clean depth (the PS test splits' look)"),
+         ("noise", "plain colours, noisy depth"),
+         ("texonly", "random textures, clean depth"),
+         ("tex", "random textures, noisy depth (kgnv2_mesh's training look)"))
+
+
+def appearance_table(out: Path) -> str:
+    """Both models on the same 240 primitive views in four looks: all shapes at 1 cm / 20° and the two shapes
+    where ``kgnv2_mesh`` loses most."""
+    lines = ["| model | look | 1 cm / 20°: GSR / GCR / OSR | cuboid GSR | cylinder GSR |", "|---|---|---:|---:|---:|"]
+    for det in ("kgnv2", "kgnv2_mesh"):
+        for look, label in LOOKS:
+            v = _load(out / "appearance" / "eval" / f"{det}_{look}" / "vision.json")
+            if v:
+                t = v["thresholds"][0]
+                shapes = t["per_shape"]
+                lines.append(f"| `{det}` | {label} | {100 * t['gsr']:.1f} / {100 * t['gcr']:.1f} / {100 * t['osr']:.1f}"
+                             f" | {100 * shapes['cuboid']['gsr']:.1f} | {100 * shapes['cylinder']['gsr']:.1f} |")
+    return "\n".join(lines)
+
+
 def failures_table(out: Path) -> str:
     lines = ["| detector | failed / attempts | " + " | ".join(CAUSES) + " |", "|---" * (len(CAUSES) + 2) + "|"]
     for det in DETECTORS:
@@ -100,6 +122,7 @@ def main(runs: Path) -> None:
     print("## Real objects\n\n" + real_table(_load(out / "real_report" / "benchmark.json")))
     print("## The label-free physics check\n\n" + physics_table(out) + "\n")
     print("## Table I on the PS test splits (GSR / GCR / OSR %)\n\n" + vision_table(out) + "\n")
+    print("## The same primitive views in four looks (240 views, 1 cm / 20°, %)\n\n" + appearance_table(out) + "\n")
     print("## Failed single-object attempts by cause\n\n" + failures_table(out) + "\n")
     print("## Six meshes from a source in neither split (dm_control's dog bones)\n\n" + dog_table(runs))
 
