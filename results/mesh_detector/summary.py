@@ -1,6 +1,6 @@
 """The tables of results/mesh_detector/README.md from what ``measure.sh`` wrote (issue 44): the real-object
 columns, the label-free physics check, Table I on the PS test splits, the same primitive views in four looks, the
-failures by cause and the dog bones.
+fine-tuned candidates, the failures by cause and the dog bones.
 Prints Markdown; a missing measurement is a dash.
 
     python results/mesh_detector/summary.py [RUNS]       # default runs
@@ -95,6 +95,43 @@ def appearance_table(out: Path) -> str:
     return "\n".join(lines)
 
 
+def finetune_table(out: Path, runs: Path) -> str:
+    """Each fine-tuned candidate of ``finetune.sh`` (a row per run folder under ``finetune/``) beside the shipped
+    ``kgnv2_mesh`` and ``kgnv2``: 1 cm / 20° GSR / GCR / OSR on both PS test splits and on textured primitives,
+    single real objects, real clearance success / clear, and the physics check on real-object scenes."""
+    def vision(path: Path) -> str:
+        v = _load(path)
+        if not v:
+            return "—"
+        t = v["thresholds"][0]
+        return f"{100 * t['gsr']:.1f} / {100 * t['gcr']:.1f} / {100 * t['osr']:.1f}"
+
+    def physics(path: Path) -> str:
+        p = _load(path)
+        return f"{100 * p['all']['held'] / p['all']['checked']:.1f} %" if p else "—"
+
+    def rate(summary: dict | None, key: str) -> str:
+        return _rate(summary["rates"][key]) if summary else "—"
+
+    lines = ["| model | PS multi | PS single | textured primitives | single real | clearance success | clearance clear "
+             "| physics, real scenes |", "|---" * 8 + "|"]
+    for det in ("kgnv2", "kgnv2_mesh"):
+        single, multi = _load(runs / "real" / "single_real" / det / "summary.json"), \
+            _load(runs / "real" / "multi_real" / det / "summary.json")
+        lines.append(f"| `{det}` (shipped) | {vision(out / 'vision' / f'{det}_ps_multi' / 'vision.json')} | "
+                     f"{vision(out / 'vision' / f'{det}_ps_single' / 'vision.json')} | "
+                     f"{vision(out / 'appearance' / 'eval' / f'{det}_tex' / 'vision.json')} | "
+                     f"{rate(single, 'success')} | {rate(multi, 'success')} | {rate(multi, 'clear')} | "
+                     f"{physics(out / 'physics' / f'{det}_real_multi' / 'physics.json')} |")
+    for f in sorted((out / "finetune").glob("*")) if (out / "finetune").is_dir() else []:
+        single, multi = _load(f / "single_real" / "summary.json"), _load(f / "multi_real" / "summary.json")
+        lines.append(f"| `{f.name}` | {vision(f / 'vision_ps_multi' / 'vision.json')} | "
+                     f"{vision(f / 'vision_ps_single' / 'vision.json')} | {vision(f / 'look_tex' / 'vision.json')} | "
+                     f"{rate(single, 'success')} | {rate(multi, 'success')} | {rate(multi, 'clear')} | "
+                     f"{physics(f / 'physics_real' / 'physics.json')} |")
+    return "\n".join(lines)
+
+
 def failures_table(out: Path) -> str:
     lines = ["| detector | failed / attempts | " + " | ".join(CAUSES) + " |", "|---" * (len(CAUSES) + 2) + "|"]
     for det in DETECTORS:
@@ -123,6 +160,7 @@ def main(runs: Path) -> None:
     print("## The label-free physics check\n\n" + physics_table(out) + "\n")
     print("## Table I on the PS test splits (GSR / GCR / OSR %)\n\n" + vision_table(out) + "\n")
     print("## The same primitive views in four looks (240 views, 1 cm / 20°, %)\n\n" + appearance_table(out) + "\n")
+    print("## Fine-tuned candidates (1 cm / 20° for the vision columns)\n\n" + finetune_table(out, runs) + "\n")
     print("## Failed single-object attempts by cause\n\n" + failures_table(out) + "\n")
     print("## Six meshes from a source in neither split (dm_control's dog bones)\n\n" + dog_table(runs))
 
