@@ -262,6 +262,14 @@ def test_a_fine_tune_starts_from_init_and_its_card_says_so(tmp_path, tiny_datase
     assert init["path"] == str(base) and init["epochs"] == 1 and len(init["sha256"]) == 64
     _, card = export_weights(fine, "fine", tmp_path / "shipped")
     assert f"| initialised from | `{base}`" in card.read_text()
+    # the init file replaced by other weights: the run no longer resumes from it
+    q = tmp_path / "other.toml"
+    q.write_text(TINY.format(variant="kgnv2", data=root, out=tmp_path / "other", epochs=1).replace("lr = 1e-3",
+                                                                                                 "lr = 1e-3\nseed = 9"))
+    other = train(load_train_config(q), progress=False)
+    base.write_bytes(other.read_bytes())
+    with pytest.raises(CheckpointError, match="started from other weights"):
+        train(load_train_config(p), progress=False)
     # kgnv2 weights cannot start a kgn run, and the refusal comes before the run folder exists
     q = tmp_path / "wrong.toml"
     q.write_text(TINY.format(variant="kgn", data=root, out=tmp_path / "wrong", epochs=1)

@@ -51,6 +51,7 @@ from kgn_bench.model.checkpoint import (
     CheckpointError,
     LoadedModel,
     dataset_identity,
+    file_sha256,
     git_commit,
     load_checkpoint,
     model_payload,
@@ -352,7 +353,7 @@ def _load_init(net: KGNNet, cfg: TrainConfig, variant: Variant) -> dict[str, Any
     net.load_state_dict(ckpt["model"])
     history = ckpt.get("history", [])
     ds = ckpt.get("dataset", {})
-    return {"path": str(path), "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+    return {"path": str(path), "sha256": file_sha256(path),
             "epochs": int(ckpt.get("epoch", 0)), "seconds": round(sum(h.get("seconds", 0.0) for h in history), 1),
             "data": ds.get("path", "?"), "data_sha256": ds.get("sha256", "")}
 
@@ -378,6 +379,8 @@ def _resume(run: _Run) -> None:
         raise CheckpointError(f"{last} was written by a different config; use another [train] out or delete it")
     if ckpt.get("dataset", {}).get("sha256") != run.identity["sha256"]:
         raise CheckpointError(f"{last} was trained on another dataset than {run.data}")
+    if (ckpt.get("init") or {}).get("sha256") != (run.init or {}).get("sha256"):
+        raise CheckpointError(f"{last} started from other weights than [train] init {run.cfg.train.init} holds now")
     run.net.load_state_dict(ckpt["model"])
     run.optim.load_state_dict(ckpt["optimizer"])
     run.start, run.history = int(ckpt["epoch"]), list(ckpt.get("history", []))
