@@ -35,6 +35,7 @@ from kgn_bench.bench.attempt import held_object
 from kgn_bench.bench.trial import capture
 from kgn_bench.eval.explain import _open_run
 from kgn_bench.gripper import GRIPPER
+from kgn_bench.io import atomic_write_text
 from kgn_bench.sim.control import IK, MotionAborted
 from kgn_bench.sim.scene import PhysicsError
 from kgn_bench.threads import trial_threads
@@ -116,9 +117,12 @@ def main() -> None:
         fixed = sum(row["outcome"][name] == "held" for row in rows if row["kind"] == "drop")
         broken = sum(row["outcome"][name] != "held" for row in rows if row["kind"] == "control")
         print(f"| {name} | {fixed} | {broken} |")
+    unfixed = sum(not any(v == "held" for k, v in row["outcome"].items() if k != "as run")
+                  for row in rows if row["kind"] == "drop")
+    print(f"\n{unfixed} of {len(drops)} drops are fixed by none of the changes.")
     out = run / "explain" / "arm_drop_replay.json"
     out.parent.mkdir(exist_ok=True)
-    out.write_text(json.dumps(rows, indent=1))
+    atomic_write_text(out, json.dumps(rows, indent=1))
 
 
 if __name__ == "__main__":
