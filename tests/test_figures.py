@@ -38,6 +38,23 @@ def test_bar_chart_with_whiskers_and_a_gap(tmp_path):
         bar_chart(["a"], ["x", "y"], np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), title="", ylabel="")
 
 
+def test_bar_chart_rows_give_slots_only_to_series_present(tmp_path):
+    groups = [f"task {i}" for i in range(10)]
+    values = np.full((10, 3), 50.0)
+    values[:7, 2] = np.nan  # a detector that runs the last three tasks only
+    fig = bar_chart(groups, ["a", "b", "vgn"], values, values - 5, values + 5, title="t", ylabel="%", per_row=4)
+    axes = fig.axes
+    assert len(axes) == 3  # ceil(10 / 4) rows of at most ceil(10 / 3) = 4 groups
+    assert [[t.get_text() for t in ax.get_xticklabels()] for ax in axes] == [groups[:4], groups[4:8], groups[8:]]
+    assert [len(ax.patches) for ax in axes] == [8, 8 + 1, 6]  # 'vgn' has a slot only where it has a value
+    widths = [{round(p.get_width(), 6) for p in ax.patches} for ax in axes]
+    assert widths[0] == {round(0.4 * 0.92, 6)} and widths[2] == {round(0.8 / 3 * 0.92, 6)}
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["a", "b", "vgn"]
+    assert fig.legends[0].get_title().get_text() == "t"
+    save_figure(fig, tmp_path / "rows.png")
+    assert _read(tmp_path / "rows.png").shape[0] > 3 * 300  # three rows of axes
+
+
 def test_line_panels_log_scale(tmp_path):
     panels = [Panel("rotation", "d (m)", "error (°)", [Line("σ = 2 px", [0.3, 1.0], [0.5, 2.0], dashed=True)],
                     log_y=True), Panel("translation", "d (m)", "cm", [Line("a", [0, 1], [1, 2], color=3)])]

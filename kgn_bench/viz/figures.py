@@ -64,34 +64,47 @@ def save_figure(fig: Figure, path: str | os.PathLike[str]) -> None:
 
 
 def bar_chart(groups: Sequence[str], series: Sequence[str], values: np.ndarray, lows: np.ndarray,
-              highs: np.ndarray, *, title: str, ylabel: str, ylim: tuple[float, float] = (0.0, 108.0)) -> Figure:
+              highs: np.ndarray, *, title: str, ylabel: str, ylim: tuple[float, float] = (0.0, 108.0),
+              per_row: int = 8) -> Figure:
     """Grouped bars: ``values`` (G, S) for G groups on the x axis and S series (one colour each), with
     whiskers from ``lows`` to ``highs`` (e.g. Wilson 95 % intervals) and the value printed above each bar.
-    NaN values leave a gap (a detector that has no run for that column). Group labels wrap at 18 characters."""
+    NaN values leave a gap (a detector that has no run for that column). Group labels wrap at 18 characters.
+
+    More than ``per_row`` groups are spread over ceil(G / per_row) rows of equal length, one axes each; a row
+    gives bar slots only to the series with a value in it (a detector that runs a few tasks only does not
+    leave a gap in every group), and one legend above the figure, under the title, names every series in its
+    colour."""
+    from matplotlib.patches import Patch
+
     values, lows, highs = (np.asarray(a, dtype=float) for a in (values, lows, highs))
     if values.shape != (len(groups), len(series)) or lows.shape != values.shape or highs.shape != values.shape:
         raise ValueError(f"values, lows and highs must be ({len(groups)}, {len(series)})")
-    fig = Figure(figsize=(max(6.5, 1.25 * len(groups) + 2.0), 3.6), layout="constrained")
-    ax = fig.add_subplot()
-    width = 0.8 / max(1, len(series))
-    x = np.arange(len(groups))
-    for j, name in enumerate(series):
-        ok = np.isfinite(values[:, j])
-        xs = x[ok] + (j - (len(series) - 1) / 2) * width
-        v = values[ok, j]
-        err = np.vstack([v - lows[ok, j], highs[ok, j] - v])
-        ax.bar(xs, v, width * 0.92, label=name, color=_tab10(j), yerr=err, capsize=2,
-               error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
-        for xi, vi, hi in zip(xs, v, highs[ok, j]):  # the value above its whisker
-            ax.text(xi, hi + 0.01 * (ylim[1] - ylim[0]), f"{vi:.0f}", ha="center", va="bottom", fontsize=5.5)
-    ax.set_xticks(x, [textwrap.fill(g, 18) for g in groups], fontsize=8)
-    ax.set_ylabel(ylabel)
-    ax.set_ylim(*ylim)
-    ax.set_title(title, fontsize=10)
-    ax.grid(axis="y", color="0.9")
-    ax.set_axisbelow(True)
-    ax.legend(fontsize=7, ncols=min(len(series), 6), loc="lower center", bbox_to_anchor=(0.5, 1.08),
-              frameon=False)
+    n_rows = max(1, -(-len(groups) // per_row))
+    row_len = -(-len(groups) // n_rows) if groups else 0
+    fig = Figure(figsize=(max(6.5, 1.25 * row_len + 2.0), 0.6 + 3.0 * n_rows), layout="constrained")
+    axes = fig.subplots(n_rows, 1, squeeze=False)[:, 0]
+    for r, ax in enumerate(axes):
+        rows = np.arange(r * row_len, min(len(groups), (r + 1) * row_len))
+        present = [j for j in range(len(series)) if np.isfinite(values[rows, j]).any()]
+        width = 0.8 / max(1, len(present))
+        x = np.arange(len(rows))
+        for k, j in enumerate(present):
+            ok = np.isfinite(values[rows, j])
+            xs = x[ok] + (k - (len(present) - 1) / 2) * width
+            v, lo, hi = values[rows[ok], j], lows[rows[ok], j], highs[rows[ok], j]
+            ax.bar(xs, v, width * 0.92, color=_tab10(j), yerr=np.vstack([v - lo, hi - v]), capsize=2,
+                   error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
+            for xi, vi, h in zip(xs, v, hi):  # the value above its whisker
+                ax.text(xi, h + 0.01 * (ylim[1] - ylim[0]), f"{vi:.0f}", ha="center", va="bottom", fontsize=5.5)
+        ax.set_xticks(x, [textwrap.fill(groups[g], 18) for g in rows], fontsize=8)
+        ax.set_xlim(-0.5, row_len - 0.5)
+        ax.set_ylabel(ylabel)
+        ax.set_ylim(*ylim)
+        ax.grid(axis="y", color="0.9")
+        ax.set_axisbelow(True)
+    fig.legend(handles=[Patch(color=_tab10(j), label=name) for j, name in enumerate(series)], fontsize=7,
+               ncols=min(len(series), 7), loc="outside upper center", frameon=False, title=title,
+               title_fontsize=10)
     return fig
 
 
