@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
 from kgn_bench.io import atomic_write
 
@@ -74,8 +75,6 @@ def bar_chart(groups: Sequence[str], series: Sequence[str], values: np.ndarray, 
     gives bar slots only to the series with a value in it (a detector that runs a few tasks only does not
     leave a gap in every group), and one legend above the figure, under the title, names every series in its
     colour."""
-    from matplotlib.patches import Patch
-
     values, lows, highs = (np.asarray(a, dtype=float) for a in (values, lows, highs))
     if values.shape != (len(groups), len(series)) or lows.shape != values.shape or highs.shape != values.shape:
         raise ValueError(f"values, lows and highs must be ({len(groups)}, {len(series)})")
@@ -84,19 +83,19 @@ def bar_chart(groups: Sequence[str], series: Sequence[str], values: np.ndarray, 
     fig = Figure(figsize=(max(6.5, 1.25 * row_len + 2.0), 0.6 + 3.0 * n_rows), layout="constrained")
     axes = fig.subplots(n_rows, 1, squeeze=False)[:, 0]
     for r, ax in enumerate(axes):
-        rows = np.arange(r * row_len, min(len(groups), (r + 1) * row_len))
-        present = [j for j in range(len(series)) if np.isfinite(values[rows, j]).any()]
+        in_row = np.arange(r * row_len, min(len(groups), (r + 1) * row_len))
+        present = [j for j in range(len(series)) if np.isfinite(values[in_row, j]).any()]
         width = 0.8 / max(1, len(present))
-        x = np.arange(len(rows))
+        x = np.arange(len(in_row))
         for k, j in enumerate(present):
-            ok = np.isfinite(values[rows, j])
+            ok = np.isfinite(values[in_row, j])
             xs = x[ok] + (k - (len(present) - 1) / 2) * width
-            v, lo, hi = values[rows[ok], j], lows[rows[ok], j], highs[rows[ok], j]
+            v, lo, hi = values[in_row[ok], j], lows[in_row[ok], j], highs[in_row[ok], j]
             ax.bar(xs, v, width * 0.92, color=_tab10(j), yerr=np.vstack([v - lo, hi - v]), capsize=2,
                    error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
             for xi, vi, h in zip(xs, v, hi):  # the value above its whisker
                 ax.text(xi, h + 0.01 * (ylim[1] - ylim[0]), f"{vi:.0f}", ha="center", va="bottom", fontsize=5.5)
-        ax.set_xticks(x, [textwrap.fill(groups[g], 18) for g in rows], fontsize=8)
+        ax.set_xticks(x, [textwrap.fill(groups[g], 18) for g in in_row], fontsize=8)
         ax.set_xlim(-0.5, row_len - 0.5)
         ax.set_ylabel(ylabel)
         ax.set_ylim(*ylim)
