@@ -131,3 +131,30 @@ def test_the_tables_name_the_recipe_of_the_shipped_weights(weights, recipe):
     """The recipe is read from the checkpoint itself, so a table row says how its weights were trained."""
     assert ex.recipe_of(ex.ModelSpec("m", "kgnv2", weights, "multi", "M")).startswith(recipe)
     assert ex.recipe_of(ex.ModelSpec("m", "kgnv2", "no_such_weights", "multi", "M")) == "not trained"
+
+
+@pytest.mark.parametrize(("epochs", "recipe"), [(32, "recipe 4 (32 epochs"), (20, "recipe 3 (20 epochs"),
+                                                (12, "recipe 2 (12 epochs")])
+def test_a_recipe_4_checkpoint_is_named_recipe_4(tmp_path, monkeypatch, epochs, recipe):
+    """The shipped kgnv2 checkpoint re-saved as if it had trained ``epochs`` epochs is named by its length."""
+    import torch
+
+    data = torch.load(ROOT / "assets" / "weights" / "kgnv2.pt", map_location="cpu", weights_only=False)
+    data["epoch"] = epochs
+    torch.save(data, tmp_path / "long.pt")
+    monkeypatch.setattr(ex, "WEIGHTS_DIR", tmp_path)
+    assert ex.recipe_of(ex.ModelSpec("m", "kgnv2", "long", "multi", "M")).startswith(recipe)
+
+
+def test_every_models_config_is_the_one_its_shipped_weights_were_trained_with():
+    """The registry's config reproduces the shipped weights: the checkpoint's recorded [train] settings (run
+    folder, schedule, seed, target assignment) are the config's. A model shipped from another config without
+    updating ``ModelSpec.config_stem`` fails here."""
+    from kgn_bench.model.checkpoint import load_checkpoint
+
+    keys = ("out", "epochs", "lr", "lr_steps", "batch_size", "seed", "assignment")
+    for m in MODELS.values():
+        recorded = load_checkpoint(ROOT / "assets" / "weights" / f"{m.weights}.pt")["train"]["train"]
+        cfg = load_train_config(ROOT / m.config).train
+        assert {k: recorded.get(k) for k in keys} == {
+            k: (list(v) if isinstance(v, tuple) else v) for k in keys for v in [getattr(cfg, k)]}, m.name

@@ -45,7 +45,9 @@ __all__ = [
 ]
 
 METRICS = ("gsr", "gcr", "osr")
-RECIPE2_EPOCHS = 12  # recipes 1 and 2 train 12 epochs; recipe 3 is recipe 2 over more
+RECIPE_EPOCHS = {2: 12, 3: 16, 4: 32}
+"""Epochs of each recipe with the frontal target assignment: recipe 2 (12, as recipe 1), recipe 3 (16, steps
+after 12 and 14), recipe 4 (32, steps after 24 and 28)."""
 THRESHOLD_LABELS = ("1 cm / 20°", "2 cm / 30°", "3 cm / 45°")
 
 
@@ -74,19 +76,24 @@ DATASETS: dict[str, DatasetSpec] = {
 @dataclass(frozen=True)
 class ModelSpec:
     """One trained model: ``variant`` decodes ``assets/weights/<weights>.pt``, trained by ``config`` on the
-    ``trained_on`` split; ``label`` is its row name in the tables."""
+    ``trained_on`` split; ``label`` is its row name in the tables. ``config_stem`` names the training config
+    (``tasks/<config_stem>.toml``) where it is not the default ``train_<weights variant>_<trained_on>``: the
+    config whose run produced the shipped weights (``tests/test_experiments.py`` checks it against the
+    checkpoint's recorded settings)."""
 
     name: str
     variant: str
     weights: str
     trained_on: str
     label: str
+    config_stem: str | None = None
 
     @property
     def config(self) -> str:
         from kgn_bench.model.variants import get_variant
 
-        return f"tasks/train_{get_variant(self.variant).weights_variant}_{self.trained_on}.toml"
+        stem = self.config_stem or f"train_{get_variant(self.variant).weights_variant}_{self.trained_on}"
+        return f"tasks/{stem}.toml"
 
     @property
     def commands(self) -> str:
@@ -337,8 +344,10 @@ def build_table2(data_dirs: DataDirs | None, out: Path, views: int | None = None
 def recipe_of(model: ModelSpec) -> str:
     """How ``model``'s shipped weights were trained, from their checkpoint: ``recipe 1`` (the reference's
     targets and scale, 12 epochs), ``recipe 2`` (the frontal target assignment, and the depth-anchored scale
-    for a scale head, 12 epochs) or ``recipe 3`` (recipe 2 over more epochs: 16, stepped after 12 and 14),
-    with the epochs; ``not trained`` when the weights are absent, ``unknown`` when unreadable."""
+    for a scale head, 12 epochs), ``recipe 3`` (recipe 2 over 16 epochs, stepped after 12 and 14) or ``recipe
+    4`` (32 epochs, stepped after 24 and 28), with the epochs (``RECIPE_EPOCHS``; a frontal-target run of
+    another length is named by the nearest shorter recipe); ``not trained`` when the weights are absent,
+    ``unknown`` when unreadable."""
     from kgn_bench.model.checkpoint import CheckpointError, load_checkpoint
 
     weights = WEIGHTS_DIR / f"{model.weights}.pt"
@@ -352,7 +361,8 @@ def recipe_of(model: ModelSpec) -> str:
     epochs = data.get("epoch", "?")
     if train.get("assignment", "first") == "frontal":
         anchor = ", depth-anchored scale" if data.get("scale_anchor", "none") == "depth" else ""
-        recipe = 3 if isinstance(epochs, int) and epochs > RECIPE2_EPOCHS else 2
+        n = epochs if isinstance(epochs, int) else 0
+        recipe = max((r for r, e in RECIPE_EPOCHS.items() if n >= e), default=2)
         return f"recipe {recipe} ({epochs} epochs, frontal targets{anchor})"
     return f"recipe 1 ({epochs} epochs)"
 

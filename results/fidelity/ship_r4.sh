@@ -35,6 +35,8 @@ if [ "$NAME" = kgnv2 ] || [ "$NAME" = kgn ]; then
   kgn-bench eval errors --weights "$NAME" --data data/ps_multi --split test --out "results/fidelity/errors_$NAME"
 fi
 echo "shipped $NAME; Table I before/after: $OUT/table1_before_after.md; curves: $OUT/${NAME}_history.md"
+echo "before committing: set config_stem=\"$(basename "$RUN")\" on the model(s) of weights $NAME in kgn_bench/eval/experiments.py"
+echo "  (tests/test_experiments.py checks it against the checkpoint) and list the weights in docs/dataset-training.md"
 if [ "$NAME" = kgnv2 ] || [ "$NAME" = kgn ]; then
   echo "next: kgn-bench benchmark --out results --workers 2 (closed-loop rows), make ci-baselines, kgn-bench perf detector --variant $NAME"
 fi
