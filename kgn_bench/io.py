@@ -2,8 +2,10 @@
 
 Every result the project writes goes through ``atomic_write``: the bytes go to a temporary file beside
 the target, are fsynced, and the temporary file is renamed over the target, so a reader (or a rerun after
-a kill) sees the old file or the whole new one, never a part. ``OSError`` from the operating system (a
-read-only folder, a full disk) becomes an ``OutputError`` whose one-line message names the path.
+a kill) sees the old file or the whole new one, never a part; a stop signal (Ctrl-C, SIGTERM, SIGHUP) that
+comes during the write takes effect right after it (``lifecycle.deferred_stop``). ``OSError`` from the
+operating system (a read-only folder, a full disk) becomes an ``OutputError`` whose one-line message names
+the path.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from kgn_bench.errors import OutputError
+from kgn_bench.lifecycle import deferred_stop
 
 __all__ = ["atomic_write", "atomic_write_text", "check_writable_dir", "describe_os_error"]
 
@@ -32,6 +35,11 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]
     like a plain ``open``). ``OutputError`` naming ``path`` if the operating system refuses; the target is
     then untouched and no temporary file is left."""
     path = Path(path)
+    with deferred_stop():
+        _write_and_rename(path, write)
+
+
+def _write_and_rename(path: Path, write: Callable[[BinaryIO], None]) -> None:
     tmp: str | None = None
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")

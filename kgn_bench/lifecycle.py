@@ -11,6 +11,11 @@ Three rules, for every command that starts worker processes (``run``, ``benchmar
   the process that started it ends for any reason, ``kill -9`` included, so no worker is left under init.
 * Workers are stopped, not waited for: a trial in flight is lost (its record was never written) and is run
   again by the rerun.
+
+A file being written when the signal comes is finished first (``deferred_stop``, around every
+``io.atomic_write``): the stop takes effect right after it, so a checkpoint or a record is whole or absent.
+A signal sent to the whole process group (``kill -- -PGID``, a scheduler stopping a job) reaches the workers
+too: they ignore it (``ignore_stop_signals``) and are stopped by their parent as above.
 """
 
 from __future__ import annotations
@@ -24,7 +29,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["STOP_SIGNALS", "Stopped", "die_with_parent", "interrupts_as_keyboard", "start_worker", "stop_workers"]
+__all__ = ["STOP_SIGNALS", "Stopped", "deferred_stop", "die_with_parent", "ignore_stop_signals",
+           "interrupts_as_keyboard", "loader_worker_init", "start_worker", "stop_workers"]
 
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 """The signals that end a command as Ctrl-C (SIGINT) does."""
@@ -53,6 +59,22 @@ def start_worker(parent_pid: int, initializer: Callable[..., None] | None, *init
         signal.signal(sig, signal.SIG_DFL)
     if initializer is not None:
         initializer(*initargs)
+
+
+def ignore_stop_signals() -> None:
+    """In a worker process: SIGINT, SIGTERM and SIGHUP ignored, so a signal sent to the whole process group
+    leaves the worker to its parent, which stops it (``stop_workers``, a DataLoader's shut-down) after its own
+    clean-up."""
+    for sig in (signal.SIGINT, *STOP_SIGNALS):
+        signal.signal(sig, signal.SIG_IGN)
+
+
+def loader_worker_init(worker_id: int) -> None:
+    """``worker_init_fn`` of a training ``torch.utils.data.DataLoader``: the worker dies with the training
+    process (``die_with_parent``) and ignores the stop signals (``ignore_stop_signals``): a group SIGTERM
+    stops the training process, which shuts its loader down, instead of killing the loader under it."""
+    die_with_parent(os.getppid())
+    ignore_stop_signals()
 
 
 def stop_workers(pool: Any) -> None:
@@ -92,3 +114,28 @@ def interrupts_as_keyboard() -> Iterator[None]:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+@contextmanager
+def deferred_stop() -> Iterator[None]:
+    """Within the block, SIGINT, SIGTERM and SIGHUP are held: one that arrives is acted on when the block
+    ends (its previous handler called: ``Stopped`` or ``KeyboardInterrupt`` raised, a default action taken
+    by re-sending the signal), so the block (a file being written) is never cut in the middle. Outside the
+    main thread nothing is changed."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    held = [sig for sig in (signal.SIGINT, *STOP_SIGNALS) if signal.getsignal(sig) is not None]  # None: not Python's
+    previous = {sig: signal.signal(sig, lambda signum, frame: pending.append(signum)) for sig in held}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if pending:
+            handler = previous[pending[0]]
+            if callable(handler):
+                handler(pending[0], None)
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), pending[0])

@@ -58,3 +58,24 @@ def test_check_writable_dir_checks_without_writing(tmp_path):
 def test_describe_os_error():
     assert describe_os_error(OSError(errno.ENOSPC, "x", "f.txt")) == "cannot write f.txt: disk full"
     assert describe_os_error(OSError(errno.EACCES, "Permission denied", "g")) == "cannot write g: Permission denied"
+
+
+def test_a_stop_signal_during_a_write_takes_effect_after_it(tmp_path):
+    """SIGTERM sent in the middle of a write: the file is written whole, then the stop is raised."""
+    import signal
+
+    from kgn_bench.io import atomic_write
+    from kgn_bench.lifecycle import Stopped, interrupts_as_keyboard
+
+    def write(f):
+        f.write(b"first half ")
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(1000):  # bytecode boundaries at which an undeferred handler would have raised
+            pass
+        f.write(b"second half")
+
+    target = tmp_path / "record.json"
+    with pytest.raises(Stopped), interrupts_as_keyboard():
+        atomic_write(target, write)
+    assert target.read_bytes() == b"first half second half"
+    assert [p.name for p in tmp_path.iterdir()] == ["record.json"]

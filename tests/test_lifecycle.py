@@ -97,3 +97,44 @@ def test_a_stopped_import_stops_its_coacd_child_and_leaves_no_folder(tmp_path):
     assert main.wait(timeout=30) == 143
     _wait_for(lambda: _gone(children), 5, "CoACD's child to die")
     assert not library.exists() or not list(library.iterdir())  # no temporary folder left behind
+
+
+def _loader_workers(proc: psutil.Process) -> list[psutil.Process]:
+    """The training process's DataLoader workers: its Python children other than multiprocessing's tracker."""
+    out = []
+    for c in proc.children():
+        try:
+            if "resource_tracker" not in " ".join(c.cmdline()):
+                out.append(c)
+        except psutil.Error:  # ended (or a zombie) meanwhile
+            pass
+    return out
+
+
+def test_a_training_stopped_by_a_group_signal_stops_cleanly_and_resumes(tmp_path, tiny_dataset):
+    """A SIGTERM for the whole process group (a scheduler stopping a job) reaches the DataLoader's worker
+    first here: the worker ignores it, the training process stops with one line and its worker, and the rerun
+    finishes the schedule from the last checkpoint."""
+    root, _ = tiny_dataset
+    config = tmp_path / "train_stop.toml"
+    config.write_text(f'[train]\nvariant = "kgnv2"\ndata = "{root}"\nout = "{tmp_path / "run"}"\nepochs = 3\n'
+                      'batch_size = 2\nlr = 1e-3\nlr_steps = [2]\nworkers = 1\neval_every = 10\neval_views = 1\n'
+                      '[augment]\ninput_size = [640, 640]\n')  # large crops: an epoch of seconds, not a blink
+    cmd = [KGN_BENCH, "train", str(config), "--quiet", "--threads", "1"]
+    main = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    proc = psutil.Process(main.pid)
+    _wait_for(lambda: (_lines(tmp_path / "run" / "history.jsonl") >= 1 and _loader_workers(proc))
+              or main.poll() is not None, 180, "the second epoch's loader worker")
+    assert main.poll() is None, main.stderr.read()
+    workers = _loader_workers(proc)
+    workers[0].send_signal(signal.SIGTERM)  # the group's signal, as it reaches the worker
+    time.sleep(1.0)
+    assert workers[0].is_running() and workers[0].status() != psutil.STATUS_ZOMBIE
+    os.killpg(main.pid, signal.SIGTERM)
+    assert main.wait(timeout=60) == 143
+    assert main.stderr.read().strip() == "kgn-bench: stopped by SIGTERM"
+    _wait_for(lambda: _gone([w.pid for w in workers]), 10, "the loader worker to end")
+    assert subprocess.run(cmd, capture_output=True, timeout=300).returncode == 0
+    history = [json.loads(line) for line in (tmp_path / "run" / "history.jsonl").read_text().splitlines()]
+    assert [h["epoch"] for h in history] == [1, 2, 3]

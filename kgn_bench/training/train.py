@@ -47,6 +47,7 @@ from kgn_bench.environment import cpu_model
 from kgn_bench.errors import KGNBenchError, warn
 from kgn_bench.kernels import cpu_flags
 from kgn_bench.kernels import mode as kernels_mode
+from kgn_bench.lifecycle import loader_worker_init
 from kgn_bench.model.checkpoint import (
     CheckpointError,
     LoadedModel,
@@ -400,7 +401,8 @@ def _train_epoch(run: _Run, epoch: int, progress: bool) -> dict[str, Any]:
         group["lr"] = _lr_at(t_cfg, epoch)
     loader = DataLoader(run.dataset, batch_size=t_cfg.batch_size, shuffle=True, drop_last=True,
                         num_workers=run.loader_workers, collate_fn=_collate, persistent_workers=False,
-                        pin_memory=cuda, generator=torch.Generator().manual_seed(t_cfg.seed * 1000 + epoch))
+                        pin_memory=cuda, generator=torch.Generator().manual_seed(t_cfg.seed * 1000 + epoch),
+                        worker_init_fn=loader_worker_init)
     bar = Progress(len(loader), f"epoch {epoch + 1}/{t_cfg.epochs}", unit="batch", enabled=progress)
     sums: dict[str, float] = {}
     t0 = time.perf_counter()

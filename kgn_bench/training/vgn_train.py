@@ -71,6 +71,7 @@ from kgn_bench.data.format import DatasetError
 from kgn_bench.data.vgn_format import SceneEntry, VGNManifest, read_manifest, read_scene
 from kgn_bench.errors import KGNBenchError
 from kgn_bench.io import atomic_write_text
+from kgn_bench.lifecycle import loader_worker_init
 from kgn_bench.model.checkpoint import CheckpointError, git_commit
 from kgn_bench.model.vgn_checkpoint import (
     export_vgn_weights,
@@ -435,7 +436,7 @@ def _loader(dataset: VGNSceneDataset, cfg: VGNTrainConfig, device: torch.device,
     generator = torch.Generator().manual_seed(shuffle_seed) if shuffle_seed is not None else None
     return DataLoader(dataset, batch_size=cfg.batch_size, shuffle=shuffle_seed is not None, drop_last=False,
                       num_workers=cfg.workers, collate_fn=collate_scenes, pin_memory=device.type == "cuda",
-                      generator=generator)
+                      generator=generator, worker_init_fn=loader_worker_init)
 
 
 def _comparable(config: dict[str, Any]) -> dict[str, Any]:
