@@ -6,6 +6,7 @@
 #   bash results/fidelity/ship_r4.sh kgnv2            # runs/train_kgnv2_multi_r4  → assets/weights/kgnv2.pt
 #   bash results/fidelity/ship_r4.sh kgn_single       # runs/train_kgn_single_r4   → assets/weights/kgn_single.pt
 #   bash results/fidelity/ship_r4.sh kgn              # runs/train_kgn_multi_r4    → assets/weights/kgn.pt
+#   bash results/fidelity/ship_r4.sh kgnv2_sbranch_single   # Table II's scale-branch model, the same recipe
 #
 # Steps: the weights and model card (kgn-bench ship); Table I and Table II on the full PS test splits (each model's
 # evaluation is cached in results/vision/ by the weights' hash, so only the new model is evaluated); Table I old
@@ -14,11 +15,11 @@
 # The closed-loop rows and the CI baselines follow the multi-split models (printed at the end: they take about an
 # hour and rewrite results/benchmark.* and results/ci_baseline*.json).
 set -euo pipefail
-NAME=${1:?kgnv2_single, kgnv2, kgn_single or kgn}
+NAME=${1:?kgnv2_single, kgnv2, kgn_single, kgn or kgnv2_sbranch_single}
 case "$NAME" in
-  kgnv2_single|kgn_single) RUN=runs/train_${NAME}_r4 ;;
+  kgnv2_single|kgn_single|kgnv2_sbranch_single) RUN=runs/train_${NAME}_r4 ;;
   kgnv2|kgn) RUN=runs/train_${NAME}_multi_r4 ;;
-  *) echo "ship_r4.sh: unknown model '$NAME' (kgnv2_single, kgnv2, kgn_single or kgn)" >&2; exit 2 ;;
+  *) echo "ship_r4.sh: unknown model '$NAME' (kgnv2_single, kgnv2, kgn_single, kgn or kgnv2_sbranch_single)" >&2; exit 2 ;;
 esac
 [ -f "$RUN/final.pt" ] || { echo "ship_r4.sh: $RUN/final.pt does not exist: the training has not finished" >&2; exit 1; }
 BEFORE=${BEFORE:-HEAD}
