@@ -54,10 +54,10 @@ def vote_offsets(hm: np.ndarray, kpts: np.ndarray, radius: int = 1) -> np.ndarra
 
 
 class VotingDetector:
-    """A shipped KGN-family model decoded with the voted offsets (``radius`` 0: the plain decoder)."""
+    """A loaded KGN-family detector decoded with the voted offsets (``radius`` 0: the plain decoder)."""
 
-    def __init__(self, weights: str, radius: int) -> None:
-        self.inner = KGNDetector(weights)
+    def __init__(self, inner: KGNDetector, radius: int) -> None:
+        self.inner = inner
         self.variant = self.inner.variant
         self.radius = radius
 
@@ -79,8 +79,9 @@ def main(data: Path, views: int) -> None:
           "| 2 cm / 30° | 3 cm / 45° |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for weights in ("kgn", "kgnv2"):
+        inner = KGNDetector(weights)  # one load of the weights for both decoders
         for radius in (0, 1):
-            detector = VotingDetector(weights, radius)
+            detector = VotingDetector(inner, radius)
             table = decompose_dataset(detector, data, views=views, progress=False)
             kp = np.nanmedian(table.keypoint_arrays(), axis=0)
             rows, _, _ = table.arrays()
